@@ -1,0 +1,1 @@
+"""Mobile manipulator models on pinocchio."""

@@ -1,0 +1,1 @@
+"""QP backends (persistent adapters) and closed-form reference solvers."""

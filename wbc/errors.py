@@ -1,0 +1,41 @@
+"""The error hierarchy of wbc. Every message names the task, parameter or shape involved."""
+
+from __future__ import annotations
+
+
+class WbcError(Exception):
+    """Root of every error raised by wbc."""
+
+
+class ShapeError(WbcError, ValueError):
+    """An array or expression has the wrong shape."""
+
+
+class NonFiniteError(WbcError, ValueError):
+    """A coefficient, bound or configuration holds NaN (or inf where inf is meaningless)."""
+
+
+class BoundsOrderError(WbcError, ValueError):
+    """A lower bound exceeds its upper bound."""
+
+
+class NonAffineError(WbcError, ValueError):
+    """A task expression is not affine in the decision vector."""
+
+
+class UnknownNameError(WbcError, KeyError):
+    """A name (backend, robot, frame, parameter, variable block) is not known.
+
+    The message lists the names that are known.
+    """
+
+    def __str__(self) -> str:  # KeyError would repr() the message
+        return str(self.args[0]) if self.args else ""
+
+
+class BackendUnavailableError(UnknownNameError):
+    """The requested QP backend is unknown or its package is not installed."""
+
+
+class InfeasibleError(WbcError, RuntimeError):
+    """A problem has no solution; raised only where a status cannot be returned instead."""
