@@ -1,0 +1,35 @@
+"""wbc — optimization-based whole-body control of mobile manipulators.
+
+A controller is a :class:`Stack` of tasks (costs, equalities, inequalities, bounds) over an
+explicit decision vector (:class:`Variables`), written with CasADi, compiled once into one
+function per priority level, and solved every tick by a swappable, persistent QP backend
+(:mod:`wbc.solvers`).
+"""
+
+from .compiler import CompiledStack
+from .errors import (
+    BackendUnavailableError,
+    BoundsOrderError,
+    InfeasibleError,
+    NonAffineError,
+    NonFiniteError,
+    ShapeError,
+    UnknownNameError,
+    WbcError,
+)
+from .qp import Backend, QPResult, Status
+from .solution import LevelResult, Solution, Timings
+from .stack import Parameter, Stack
+from .terms import Cost, Equality, Inequality, Task, Term, VariableBounds
+from .variables import Variables
+from .workspace import Workspace
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Backend", "BackendUnavailableError", "BoundsOrderError", "CompiledStack", "Cost",
+    "Equality", "InfeasibleError", "Inequality", "LevelResult", "NonAffineError",
+    "NonFiniteError", "Parameter", "QPResult", "ShapeError", "Solution", "Stack", "Status",
+    "Task", "Term", "Timings", "UnknownNameError", "VariableBounds", "Variables", "WbcError",
+    "Workspace",
+]

@@ -1,0 +1,86 @@
+"""What one solve of a stack returns."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .qp import Status
+from .variables import Variables
+
+
+@dataclass
+class Timings:
+    """Wall-clock split of one tick [s].
+
+    Attributes:
+        model: kinematics / parameter update (filled by a controller; 0 for ``stack.solve``).
+        assembly: evaluating the compiled level functions and the cascade's frozen rows.
+        solve: inside the QP backends (update + solve).
+    """
+
+    model: float = 0.0
+    assembly: float = 0.0
+    solve: float = 0.0
+
+    @property
+    def total(self) -> float:
+        return self.model + self.assembly + self.solve
+
+
+@dataclass
+class LevelResult:
+    """Outcome of one QP of the cascade.
+
+    Attributes:
+        label: e.g. ``"level 1 (tasks: ee, posture)"``.
+        status: backend status.
+        x: the decision vector after this QP (zeros if it failed).
+        frozen_rank: rank of the earlier levels' frozen cost rows it was solved under.
+        iterations: backend iterations (``-1`` if unknown).
+        message: the backend's message on failure.
+    """
+
+    label: str
+    status: Status
+    x: np.ndarray
+    frozen_rank: int
+    iterations: int = -1
+    message: str = ""
+
+
+@dataclass
+class Solution:
+    """Result of ``stack.solve`` / ``workspace.solve``.
+
+    Attributes:
+        x: the decision vector. On failure: the result of the last level that succeeded (its
+            higher priorities are still met), or zeros if the first level failed — never NaN.
+        status: ``Status.SOLVED`` or the status of the first failing QP.
+        levels: one :class:`LevelResult` per QP solved, in order.
+        scale: task scale ``s ∈ [0, 1]`` of the first scaling level, ``None`` if none.
+        scales: ``priority -> s`` for every scaling level.
+        timings: :class:`Timings` [s].
+        message: empty on success, else what failed and where.
+    """
+
+    x: np.ndarray
+    status: Status
+    levels: list[LevelResult]
+    variables: Variables
+    scales: dict[int, float] = field(default_factory=dict)
+    timings: Timings = field(default_factory=Timings)
+    message: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.status is Status.SOLVED
+
+    @property
+    def scale(self) -> float | None:
+        return next(iter(self.scales.values()), None)
+
+    def __getitem__(self, block: str) -> np.ndarray:
+        """The part of ``x`` of a variable block, e.g. ``solution["qd_arm"]``."""
+        return self.x[self.variables.slice(block)]

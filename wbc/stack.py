@@ -1,0 +1,297 @@
+"""`Stack`: a prioritised stack of tasks over an explicit decision vector."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from .errors import ShapeError, WbcError
+from .terms import (
+    Cost,
+    Inequality,
+    Task,
+    Term,
+    VariableBounds,
+    check_finite,
+)
+from .variables import Variables
+
+
+@dataclass
+class Parameter:
+    """A named numeric input of a stack (a matrix), written into the workspace every tick.
+
+    Attributes:
+        name: unique within the stack; tasks sharing a quantity share the name.
+        shape: ``(rows, cols)``.
+        symbol: the CasADi symbol (``SX.sym(name, rows, cols)``).
+        default: value used until set, or ``None`` (then it must be set before solving).
+        allow_inf: bounds may hold ``±inf``; other coefficients may not.
+    """
+
+    name: str
+    shape: tuple[int, int]
+    symbol: ca.SX
+    default: np.ndarray | None = None
+    allow_inf: bool = False
+
+    @property
+    def size(self) -> int:
+        return self.shape[0] * self.shape[1]
+
+
+@dataclass
+class Entry:
+    """A term placed in the stack: at a level (soft) or as a hard constraint."""
+
+    term: Term
+    task_name: str
+    weight: float | ca.SX = 1.0
+
+
+class Stack:
+    """Ordered priority levels of tasks, plus hard constraints, over ``variables``.
+
+    Within a level tasks are weighted; between levels priorities are strict (lexicographic),
+    solved as a cascade: level ``k`` minimises its own cost while every earlier level's optimum
+    is kept (cost rows frozen at their optimal values, rank-compressed; slacks of soft
+    inequalities frozen). Lower ``priority`` numbers come first.
+
+    Args:
+        variables: a :class:`Variables`, a mapping ``name -> size``, or an ``int`` (one block
+            ``"x"``).
+        damping: ``ρ`` of the regularisation ``ρ²/2 · xᵀ W x`` added to every level.
+        metric: ``W`` (symmetric PSD ``(n, n)``, or ``(n,)`` diagonal); identity by default.
+        mobility: alternative to ``metric``: a symmetric PSD mobility ``M = W⁻¹``. Directions
+            in its null space are pinned to zero (hard), and ``W = M⁺`` elsewhere — so that the
+            one-level stack reproduces ``M Jᵀ(J M Jᵀ + ρ² I)⁻¹ v`` (DESIGN math note 1).
+        min_norm: add a final level minimising ``xᵀ W x`` under everything above, which makes
+            the answer unique when the levels leave freedom. Default: on when ``damping == 0``.
+        rank_tol: relative singular-value tolerance of the frozen rows' rank compression.
+
+    Example:
+        >>> import numpy as np, wbc
+        >>> from wbc.tasks import LinearTask, Bounds
+        >>> stack = wbc.Stack(wbc.Variables(qd=3))
+        >>> _ = stack.add(LinearTask(np.eye(2, 3), [1.0, 2.0], name="track"), priority=0)
+        >>> _ = stack.constrain(Bounds(-1.5, 1.5))
+        >>> stack.solve("daqp").x.round(6)
+        array([1. , 1.5, 0. ])
+    """
+
+    def __init__(
+        self,
+        variables: Variables | Mapping[str, int] | int,
+        damping: float = 0.0,
+        metric: np.ndarray | None = None,
+        mobility: np.ndarray | None = None,
+        min_norm: bool | None = None,
+        rank_tol: float = 1e-9,
+    ) -> None:
+        if isinstance(variables, int):
+            variables = Variables(x=variables)
+        elif not isinstance(variables, Variables):
+            variables = Variables(variables)
+        self.variables = variables
+        n = variables.n
+        if not np.isfinite(damping) or damping < 0:
+            raise WbcError(f"damping must be a finite number >= 0, got {damping!r}")
+        self.damping = float(damping)
+        if metric is not None and mobility is not None:
+            raise WbcError("give either metric or mobility, not both")
+        self.metric, self.pinned = _metric_and_pins(n, metric, mobility)
+        self.min_norm = (self.damping == 0.0) if min_norm is None else bool(min_norm)
+        self.rank_tol = float(rank_tol)
+        self.parameters: dict[str, Parameter] = {}
+        self.levels: dict[int, list[Entry]] = {}
+        self.scaling_levels: set[int] = set()
+        self.constraints: list[Entry] = []
+        self._names: set[str] = set()
+        self._compiled = None
+        self._workspaces: dict = {}
+
+    # ------------------------------------------------------------------ composition
+    def parameter(self, name: str, shape: int | tuple[int, ...], default=None,
+                  allow_inf: bool = False) -> ca.SX:
+        """Declare (or fetch, if already declared with the same shape) a parameter.
+
+        Args:
+            name: unique name; set its value with ``workspace.set(name=value)``.
+            shape: ``rows`` or ``(rows, cols)``.
+            default: initial value (numbers of that shape), or ``None``.
+            allow_inf: whether ``±inf`` entries are legal (bounds).
+
+        Returns:
+            The CasADi symbol, to be used in task expressions.
+        """
+        shape = _normalise_shape(shape, name)
+        if name in self.parameters:
+            known = self.parameters[name]
+            if known.shape != shape:
+                raise ShapeError(f"parameter {name!r} is declared with shape {shape} but "
+                                 f"exists with shape {known.shape}")
+            if default is not None:
+                known.default = _checked_value(default, known)
+            return known.symbol
+        param = Parameter(name, shape, ca.SX.sym(name, *shape), None, allow_inf)
+        if default is not None:
+            param.default = _checked_value(default, param)
+        self.parameters[name] = param
+        self._compiled = None
+        return param.symbol
+
+    def add(self, task: Task, priority: int = 0, weight: float | ca.SX = 1.0,
+            scaling: bool = False) -> Stack:
+        """Add ``task`` at ``priority`` (0 first) with a weight inside its level.
+
+        Equalities become costs, inequalities become soft (slack-minimising).
+
+        Args:
+            scaling: make the level a task-scaling level: first maximise ``s ∈ [0, 1]`` such
+                that its costs hold exactly with their targets scaled by ``s`` (an LP), then
+                solve the level with ``s`` fixed (the QP form of SNS).
+        """
+        if not isinstance(priority, (int, np.integer)):
+            raise WbcError(f"priority must be an integer, got {priority!r}")
+        entries = self._entries(task, weight)
+        for e in entries:
+            if isinstance(e.term, VariableBounds):
+                raise WbcError(f"task {e.task_name!r}: bounds are hard; use stack.constrain()")
+            if scaling and isinstance(e.term, Inequality):
+                raise WbcError(f"task {e.task_name!r}: a scaling level takes costs and "
+                               "equalities only")
+        self.levels.setdefault(int(priority), []).extend(entries)
+        if scaling:
+            self.scaling_levels.add(int(priority))
+        self._compiled = None
+        return self
+
+    def constrain(self, task: Task) -> Stack:
+        """Add a hard constraint (equality, inequality or bounds), enforced at every level."""
+        entries = self._entries(task, 1.0)
+        for e in entries:
+            if isinstance(e.term, Cost):
+                raise WbcError(f"task {e.task_name!r} is a cost; add it with stack.add()")
+        self.constraints.extend(entries)
+        self._compiled = None
+        return self
+
+    def _entries(self, task: Task, weight) -> list[Entry]:
+        if not isinstance(task, Task):
+            raise WbcError(f"expected a wbc task, got {type(task).__name__}")
+        if isinstance(weight, (int, float, np.floating)):
+            if not np.isfinite(weight) or weight < 0:
+                raise WbcError(f"weight must be a finite number >= 0, got {weight!r}")
+        name = task.name or f"{type(task).__name__.lower()}{len(self._names)}"
+        if name in self._names:
+            raise WbcError(f"a task named {name!r} is already in the stack")
+        task.name = name  # unnamed tasks are named by the stack, so their parameters are too
+        self._names.add(name)
+        terms = list(task.terms(self))
+        if not terms:
+            raise WbcError(f"task {name!r} produced no terms")
+        return [Entry(t, name, weight) for t in terms]
+
+    # ------------------------------------------------------------------ use
+    @property
+    def priorities(self) -> list[int]:
+        """The priorities in solving order."""
+        return sorted(self.levels)
+
+    def compile(self):
+        """Compile (once; cached until the stack changes) into an immutable
+        :class:`~wbc.compiler.CompiledStack`."""
+        if self._compiled is None:
+            from .compiler import compile_stack
+
+            self._compiled = compile_stack(self)
+            self._workspaces.clear()
+        return self._compiled
+
+    def workspace(self, backend="daqp", profile: str = "default", **options):
+        """A new mutable :class:`~wbc.workspace.Workspace` (buffers + live solvers)."""
+        from .workspace import Workspace
+
+        return Workspace(self.compile(), backend, profile, **options)
+
+    def solve(self, backend="daqp", profile: str = "default",
+              params: Mapping[str, np.ndarray] | None = None, **values):
+        """One-off solve with the given parameter values; returns a :class:`~wbc.Solution`.
+
+        Workspaces are cached per backend and profile, so repeated calls reuse live solvers.
+        Parameter names with dots (``"task.A"``) go in ``params``.
+        """
+        key = (backend, profile)
+        compiled = self.compile()
+        ws = self._workspaces.get(key)
+        if ws is None:
+            from .workspace import Workspace
+
+            ws = self._workspaces[key] = Workspace(compiled, backend, profile)
+        if params:
+            ws.set(**params)
+        if values:
+            ws.set(**values)
+        return ws.solve()
+
+
+def _normalise_shape(shape, name: str) -> tuple[int, int]:
+    if isinstance(shape, (int, np.integer)):
+        shape = (int(shape), 1)
+    shape = tuple(int(s) for s in shape)
+    if len(shape) == 1:
+        shape = (shape[0], 1)
+    if len(shape) != 2 or min(shape) < 0:
+        raise ShapeError(f"parameter {name!r}: bad shape {shape}")
+    return shape
+
+
+def _checked_value(value, param: Parameter) -> np.ndarray:
+    """``value`` as an array of ``param.shape``; raises on bad shape or non-finite entries."""
+    arr = np.asarray(value, dtype=float)
+    rows, cols = param.shape
+    if arr.ndim == 0 and rows * cols == 1:
+        arr = arr.reshape(1, 1)
+    if arr.ndim == 1 and cols == 1 and arr.shape[0] == rows:
+        arr = arr.reshape(rows, 1)
+    if arr.shape != param.shape:
+        raise ShapeError(f"parameter {param.name!r} expects shape "
+                         f"{(rows,) if cols == 1 else param.shape}, got {np.shape(value)}")
+    check_finite(arr, f"parameter {param.name!r}", param.allow_inf)
+    return arr
+
+
+def _metric_and_pins(n: int, metric, mobility) -> tuple[np.ndarray, np.ndarray | None]:
+    """Return ``(W, P)``: the regularisation metric and the rows ``P`` with ``P x = 0`` pinned
+    (``None`` if nothing is pinned)."""
+    if mobility is None:
+        if metric is None:
+            return np.eye(n), None
+        W = np.asarray(metric, dtype=float)
+        if W.ndim == 1:
+            W = np.diag(W)
+        _check_psd(W, n, "metric")
+        return W, None
+    M = np.asarray(mobility, dtype=float)
+    if M.ndim == 1:
+        M = np.diag(M)
+    _check_psd(M, n, "mobility")
+    eigval, eigvec = np.linalg.eigh(M)
+    keep = eigval > 1e-12 * max(1.0, eigval.max())
+    W = (eigvec[:, keep] / eigval[keep]) @ eigvec[:, keep].T
+    pinned = eigvec[:, ~keep].T
+    return W, (pinned if pinned.shape[0] else None)
+
+
+def _check_psd(W: np.ndarray, n: int, what: str) -> None:
+    if W.shape != (n, n):
+        raise ShapeError(f"{what} must be ({n},) or ({n}, {n}), got {W.shape}")
+    check_finite(W, what)
+    if not np.allclose(W, W.T, atol=1e-12):
+        raise WbcError(f"{what} must be symmetric")
+    if np.linalg.eigvalsh(W).min() < -1e-12 * max(1.0, np.abs(W).max()):
+        raise WbcError(f"{what} must be positive semi-definite")
+

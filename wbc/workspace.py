@@ -1,0 +1,240 @@
+"""`Workspace`: the mutable half of a compiled stack (parameter vector, buffers, live solvers).
+
+A :class:`~wbc.compiler.CompiledStack` is immutable and can be shared; each workspace owns the
+parameter vector ``p``, one set of preallocated QP arrays per block, the CasADi evaluation
+buffers that write into them, and one persistent backend per block. The tick is::
+
+    for each block (level, scaling LP, min-norm):   # a loop over levels, never over tasks
+        evaluate its compiled function into its arrays         (≈ 1–3 µs)
+        append frozen rows of earlier levels (numpy)
+        backend.update(...); backend.solve(warm start)
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from .compiler import LEVEL, SCALING_LP, CompiledStack, QPBlock
+from .errors import UnknownNameError, WbcError
+from .qp import Backend, QPResult, Status
+from .solution import LevelResult, Solution, Timings
+from .stack import Parameter, _checked_value
+
+BackendSpec = str | Callable[[], Backend]
+
+_ABS_RANK_TOL = 1e-12
+
+
+def make_backend(spec: BackendSpec, profile: str, **options) -> Backend:
+    """A fresh backend from a registered name (see :func:`wbc.solvers.make_backend`) or from a
+    zero-argument factory."""
+    if isinstance(spec, str):
+        from wbc.solvers import make_backend as from_registry
+
+        return from_registry(spec, profile=profile, **options)
+    if callable(spec):
+        return spec()
+    raise WbcError(f"backend must be a name or a factory, got {type(spec).__name__}")
+
+
+class _BlockState:
+    """Arrays, CasADi buffer and backend of one QP block."""
+
+    def __init__(self, block: QPBlock, n: int, p: np.ndarray, E: np.ndarray,
+                 backend: Backend) -> None:
+        self.block = block
+        nz, m = block.n_z, block.m_total
+        self.H = np.zeros((nz, nz), order="F")
+        self.g = np.zeros(nz)
+        self.A = np.zeros((m, nz))  # C order: row blocks are contiguous
+        self.lA = np.full(m, -np.inf)
+        self.uA = np.full(m, np.inf)
+        self.lb = np.full(nz, -np.inf)
+        self.ub = np.full(nz, np.inf)
+        if block.kind == SCALING_LP:
+            self.lb[n], self.ub[n] = 0.0, 1.0
+        self.buffer, self.evaluate = block.function.buffer()
+        self.buffer.set_arg(0, memoryview(p))
+        top = block.m_top
+        outputs = [self.H.reshape(-1, order="F"), self.g, self.A[:top].reshape(-1),
+                   self.lA[:top], self.uA[:top], self.lb[:n], self.ub[:n],
+                   E[block.e_offset:block.e_offset + block.m_cost].reshape(-1)]
+        for i, out in enumerate(outputs):
+            if out.size:
+                self.buffer.set_res(i, memoryview(out))
+        self.backend = backend
+        self.ready = False  # backend.setup done
+        self.warm: np.ndarray | None = None
+
+    def qp(self) -> tuple:
+        return self.H, self.g, self.A, self.lA, self.uA, self.lb, self.ub
+
+
+class Workspace:
+    """Mutable state for solving a compiled stack every tick.
+
+    Args:
+        compiled: the compiled stack (``stack.compile()``).
+        backend: a backend name (``wbc.solvers.available_backends()``) or a factory.
+        profile: tolerance profile, ``"default"`` or ``"tight"``.
+        warm_start: warm-start every QP from its previous solution.
+        **options: backend options overriding the profile.
+
+    Example:
+        >>> ws = stack.workspace("proxqp")               # doctest: +SKIP
+        >>> ws.set(J=J, v=v); sol = ws.solve()           # doctest: +SKIP
+        >>> ws.view("J")[:] = J                          # zero-check fast path  # doctest: +SKIP
+    """
+
+    def __init__(self, compiled: CompiledStack, backend: BackendSpec = "daqp",
+                 profile: str = "default", warm_start: bool = True, **options) -> None:
+        self.compiled = compiled
+        self.backend_name = backend if isinstance(backend, str) else getattr(
+            backend, "__name__", "custom")
+        self.profile = profile
+        self.warm_start = warm_start
+        n = compiled.n
+        self.p = compiled.defaults.copy()
+        self._unset = {name for name, (o, shape, _) in compiled.parameters.items()
+                       if np.isnan(self.p[o:o + shape[0] * shape[1]]).any()}
+        self._views = {name: self.p[o:o + shape[0] * shape[1]].reshape(shape, order="F")
+                       for name, (o, shape, _) in compiled.parameters.items()}
+        self._E = np.zeros((compiled.n_e, n))  # weighted cost rows of every level
+        self._S = np.zeros((compiled.n_s, n))  # soft-inequality rows of every level
+        self._lS = np.zeros(compiled.n_s)  # their bounds shifted by the optimal slacks
+        self._uS = np.zeros(compiled.n_s)
+        self._blocks = [_BlockState(b, n, self.p, self._E,
+                                    make_backend(backend, profile, **options))
+                        for b in compiled.blocks]
+
+    # ------------------------------------------------------------------ parameters
+    @property
+    def parameter_names(self) -> list[str]:
+        return list(self._views)
+
+    def view(self, name: str) -> np.ndarray:
+        """Writable view of parameter ``name`` inside ``p`` (shape as declared, column-major).
+
+        Writing into it is the zero-copy, zero-check path for controllers; :meth:`set` checks
+        shapes and finiteness.
+        """
+        try:
+            view = self._views[name]
+        except KeyError:
+            raise UnknownNameError(f"unknown parameter {name!r}; parameters are "
+                                   f"{sorted(self._views)}") from None
+        self._unset.discard(name)
+        return view
+
+    def set(self, **values) -> Workspace:
+        """Set parameters by name (checked: shape, NaN, inf where illegal)."""
+        for name, value in values.items():
+            view = self.view(name)
+            offset, shape, allow_inf = self.compiled.parameters[name]
+            param = Parameter(name, shape, None, None, allow_inf)
+            view[...] = _checked_value(value, param)
+        return self
+
+    # ------------------------------------------------------------------ the tick
+    def solve(self) -> Solution:
+        """Solve the cascade for the current parameters. Never raises on a numerical failure:
+        the :class:`~wbc.Solution` carries the status."""
+        if self._unset:
+            raise WbcError(f"parameters never set: {sorted(self._unset)}")
+        n = self.compiled.n
+        timings = Timings()
+        levels: list[LevelResult] = []
+        scales: dict[int, float] = {}
+        x = np.zeros(n)
+        status, message = Status.SOLVED, ""
+        for state in self._blocks:
+            block = state.block
+            t0 = time.perf_counter()
+            state.evaluate()
+            rank = self._append_frozen_rows(state, x)
+            t1 = time.perf_counter()
+            result = self._solve_block(state)
+            t2 = time.perf_counter()
+            timings.assembly += t1 - t0
+            timings.solve += t2 - t1
+            if result.status is not Status.SOLVED:
+                status = result.status
+                message = f"{block.label}: {result.status.value}" + (
+                    f" ({result.message})" if result.message else "") + self._diagnose(state)
+                levels.append(LevelResult(block.label, result.status, np.zeros(n), rank,
+                                          result.iterations, result.message))
+                break
+            z = result.x
+            if block.kind == SCALING_LP:
+                s = min(max(float(z[n]), 0.0), 1.0)
+                scales[block.priority] = s
+                self.p[block.scale_index] = s
+            else:
+                x = z[:n].copy()
+                if block.kind == LEVEL and block.m_soft:
+                    self._freeze_soft_rows(state, z[n:])
+            levels.append(LevelResult(block.label, result.status, z[:n].copy(), rank,
+                                      result.iterations))
+        return Solution(x, status, levels, self.compiled.variables, scales, timings, message)
+
+    def _solve_block(self, state: _BlockState) -> QPResult:
+        if state.ready:
+            state.backend.update(*state.qp())
+        else:
+            state.backend.setup(*state.qp())
+            state.ready = True
+        result = state.backend.solve(state.warm if self.warm_start else None)
+        state.warm = result.x if result.status is Status.SOLVED else None
+        return result
+
+    def _append_frozen_rows(self, state: _BlockState, x: np.ndarray) -> int:
+        """Write earlier levels' frozen rows below the block's own rows; return the rank of the
+        frozen cost rows."""
+        block, n = state.block, self.compiled.n
+        row = block.m_top
+        if block.n_frozen_soft:
+            end = row + block.n_frozen_soft
+            state.A[row:end, :n] = self._S[:block.n_frozen_soft]
+            state.lA[row:end] = self._lS[:block.n_frozen_soft]
+            state.uA[row:end] = self._uS[:block.n_frozen_soft]
+            row = end
+        if not block.n_frozen_cost:
+            return 0
+        # Keep A_j x = A_j x_j* for every earlier level j, as an orthonormal basis of the
+        # stacked rows' row space: backends never see dependent equalities.
+        _, sv, Vt = np.linalg.svd(self._E[:block.n_frozen_cost], full_matrices=False)
+        rank = int(np.count_nonzero(sv > max(_ABS_RANK_TOL, self.compiled.rank_tol * sv[0])))
+        end = row + block.m_frozen_eq
+        rows = state.A[row:end, :n]
+        rows[:rank] = Vt[:rank]
+        rows[rank:] = 0.0
+        rhs = Vt[:rank] @ x
+        state.lA[row:row + rank] = rhs
+        state.uA[row:row + rank] = rhs
+        state.lA[row + rank:end] = -np.inf
+        state.uA[row + rank:end] = np.inf
+        return rank
+
+    def _freeze_soft_rows(self, state: _BlockState, slack: np.ndarray) -> None:
+        """Later levels keep this level's soft rows at their optimal violation ``w*``:
+        ``l + w* <= C x <= u + w*``."""
+        block, n = state.block, self.compiled.n
+        own = slice(block.m_hard, block.m_hard + block.m_soft)
+        dest = slice(block.s_offset, block.s_offset + block.m_soft)
+        self._S[dest] = state.A[own, :n]
+        self._lS[dest] = state.lA[own] + slack
+        self._uS[dest] = state.uA[own] + slack
+
+    def _diagnose(self, state: _BlockState) -> str:
+        """Name the culprit of a failure when the data itself is contradictory."""
+        n = self.compiled.n
+        bad = np.flatnonzero(state.lb[:n] > state.ub[:n])
+        if bad.size:
+            return f"; bounds have lower > upper at x[{int(bad[0])}]"
+        bad = np.flatnonzero(state.lA[:state.block.m_hard] > state.uA[:state.block.m_hard])
+        if bad.size:
+            return f"; hard constraint row {int(bad[0])} has lower > upper"
+        return ""
