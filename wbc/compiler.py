@@ -151,7 +151,6 @@ def compile_stack(stack) -> CompiledStack:
 
     C_h, l_h, u_h, lb, ub = _hard_constraints(stack, x, n)
     W = ca.SX(ca.DM(stack.metric))
-    reg = stack.damping ** 2 * W
 
     blocks: list[QPBlock] = []
     n_e = n_s = 0
@@ -182,7 +181,7 @@ def compile_stack(stack) -> CompiledStack:
         l_s = ca.vertcat(*[s[1] for s in softs]) if softs else ca.SX(0, 1)
         u_s = ca.vertcat(*[s[2] for s in softs]) if softs else ca.SX(0, 1)
         w_s = ca.vertcat(*[s[3] for s in softs]) if softs else ca.SX(0, 1)
-        H = ca.diagcat(A_c.T @ A_c + reg, ca.diag(w_s))
+        H = ca.diagcat(A_c.T @ A_c + stack.damping(k) ** 2 * W, ca.diag(w_s))
         g = ca.vertcat(-A_c.T @ b, ca.SX.zeros(m_s))
         A_top = ca.vertcat(ca.horzcat(C_h, ca.SX(C_h.shape[0], m_s)),
                            ca.horzcat(C_s, -ca.SX.eye(m_s)))

@@ -63,13 +63,16 @@ class Stack:
     Args:
         variables: a :class:`Variables`, a mapping ``name -> size``, or an ``int`` (one block
             ``"x"``).
-        damping: ``ρ`` of the regularisation ``ρ²/2 · xᵀ W x`` added to every level.
+        damping: ``ρ`` of the regularisation ``ρ²/2 · xᵀ W x`` added to every level, or a
+            mapping ``priority -> ρ`` (unlisted levels undamped). The regularisation is not
+            frozen: later levels see only the earlier levels' task rows.
         metric: ``W`` (symmetric PSD ``(n, n)``, or ``(n,)`` diagonal); identity by default.
         mobility: alternative to ``metric``: a symmetric PSD mobility ``M = W⁻¹``. Directions
             in its null space are pinned to zero (hard), and ``W = M⁺`` elsewhere — so that the
             one-level stack reproduces ``M Jᵀ(J M Jᵀ + ρ² I)⁻¹ v`` (DESIGN math note 1).
         min_norm: add a final level minimising ``xᵀ W x`` under everything above, which makes
-            the answer unique when the levels leave freedom. Default: on when ``damping == 0``.
+            the answer unique when the levels leave freedom. Default: on when the last level
+            is undamped.
         rank_tol: relative singular-value tolerance of the frozen rows' rank compression.
 
     Example:
@@ -85,7 +88,7 @@ class Stack:
     def __init__(
         self,
         variables: Variables | Mapping[str, int] | int,
-        damping: float = 0.0,
+        damping: float | Mapping[int, float] = 0.0,
         metric: np.ndarray | None = None,
         mobility: np.ndarray | None = None,
         min_norm: bool | None = None,
@@ -97,13 +100,16 @@ class Stack:
             variables = Variables(variables)
         self.variables = variables
         n = variables.n
-        if not np.isfinite(damping) or damping < 0:
-            raise WbcError(f"damping must be a finite number >= 0, got {damping!r}")
-        self.damping = float(damping)
+        per_level = damping if isinstance(damping, Mapping) else {}
+        for rho in [*per_level.values()] if per_level else [damping]:
+            if not np.isfinite(rho) or rho < 0:
+                raise WbcError(f"damping must be a finite number >= 0, got {rho!r}")
+        self._damping = {int(k): float(v) for k, v in per_level.items()}
+        self._default_damping = 0.0 if per_level else float(damping)
         if metric is not None and mobility is not None:
             raise WbcError("give either metric or mobility, not both")
         self.metric, self.pinned = _metric_and_pins(n, metric, mobility)
-        self.min_norm = (self.damping == 0.0) if min_norm is None else bool(min_norm)
+        self._min_norm = min_norm
         self.rank_tol = float(rank_tol)
         self.parameters: dict[str, Parameter] = {}
         self.levels: dict[int, list[Entry]] = {}
@@ -200,6 +206,17 @@ class Stack:
     def priorities(self) -> list[int]:
         """The priorities in solving order."""
         return sorted(self.levels)
+
+    def damping(self, priority: int) -> float:
+        """``ρ`` of level ``priority``."""
+        return self._damping.get(priority, self._default_damping)
+
+    @property
+    def min_norm(self) -> bool:
+        """Whether a final minimum-norm level is solved."""
+        if self._min_norm is not None:
+            return bool(self._min_norm)
+        return not self.levels or self.damping(self.priorities[-1]) == 0.0
 
     def compile(self):
         """Compile (once; cached until the stack changes) into an immutable

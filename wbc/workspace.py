@@ -68,6 +68,7 @@ class _BlockState:
         self.backend = backend
         self.ready = False  # backend.setup done
         self.warm: np.ndarray | None = None
+        self.result: QPResult | None = None  # last backend result (multipliers included)
 
     def qp(self) -> tuple:
         return self.H, self.g, self.A, self.lA, self.uA, self.lb, self.ub
@@ -106,6 +107,7 @@ class Workspace:
         self._S = np.zeros((compiled.n_s, n))  # soft-inequality rows of every level
         self._lS = np.zeros(compiled.n_s)  # their bounds shifted by the optimal slacks
         self._uS = np.zeros(compiled.n_s)
+        self._reached = 0  # blocks solved in the last tick
         self._blocks = [_BlockState(b, n, self.p, self._E,
                                     make_backend(backend, profile, **options))
                         for b in compiled.blocks]
@@ -138,6 +140,11 @@ class Workspace:
             view[...] = _checked_value(value, param)
         return self
 
+    def last_qps(self) -> list[tuple]:
+        """For diagnostics and tests: per QP of the last tick, ``(label, (H, g, A, lA, uA, lb,
+        ub), QPResult)`` — the exact arrays the backend saw (live buffers, copy to keep)."""
+        return [(s.block.label, s.qp(), s.result) for s in self._blocks[:self._reached]]
+
     # ------------------------------------------------------------------ the tick
     def solve(self) -> Solution:
         """Solve the cascade for the current parameters. Never raises on a numerical failure:
@@ -150,7 +157,8 @@ class Workspace:
         scales: dict[int, float] = {}
         x = np.zeros(n)
         status, message = Status.SOLVED, ""
-        for state in self._blocks:
+        for reached, state in enumerate(self._blocks, start=1):
+            self._reached = reached
             block = state.block
             t0 = time.perf_counter()
             state.evaluate()
@@ -186,7 +194,7 @@ class Workspace:
         else:
             state.backend.setup(*state.qp())
             state.ready = True
-        result = state.backend.solve(state.warm if self.warm_start else None)
+        result = state.result = state.backend.solve(state.warm if self.warm_start else None)
         state.warm = result.x if result.status is Status.SOLVED else None
         return result
 
