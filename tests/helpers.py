@@ -1,0 +1,49 @@
+"""Shared test helpers: random instances with controlled spectra, and KKT residuals."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import wbc
+
+
+def random_matrix(rng: np.random.Generator, m: int, n: int, rank: int | None = None,
+                  smin: float = 0.3, smax: float = 3.0) -> np.ndarray:
+    """An ``(m, n)`` matrix of exactly ``rank`` (default: full) with nonzero singular values in
+    ``[smin, smax]``, so that the tests probe rank deficiency, not ill-conditioning."""
+    rank = min(m, n) if rank is None else rank
+    U, _ = np.linalg.qr(rng.standard_normal((m, m)))
+    V, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    s = rng.uniform(smin, smax, rank)
+    return (U[:, :rank] * s) @ V[:, :rank].T
+
+
+def kkt_residuals(qp: tuple, result: wbc.QPResult) -> dict[str, float]:
+    """Stationarity, primal feasibility and complementarity of a backend's answer, in the sign
+    convention of :mod:`wbc.qp` (``H x + g + Aᵀ y + z = 0``)."""
+    H, g, A, lA, uA, lb, ub = qp
+    x, y, z = result.x, result.y, result.z
+    Ax = A @ x
+    stationarity = np.abs(H @ x + g + A.T @ y + z).max(initial=0.0)
+    primal = max(np.max(lA - Ax, initial=0.0), np.max(Ax - uA, initial=0.0),
+                 np.max(lb - x, initial=0.0), np.max(x - ub, initial=0.0))
+    comp = 0.0
+    for val, lo, up, mult in ((Ax, lA, uA, y), (x, lb, ub, z)):
+        upper_gap = np.where(np.isfinite(up), up - val, np.inf)
+        lower_gap = np.where(np.isfinite(lo), val - lo, np.inf)
+        pos, neg = np.maximum(mult, 0.0), np.maximum(-mult, 0.0)
+        with np.errstate(invalid="ignore"):
+            terms = np.concatenate([np.where(pos > 0, pos * upper_gap, 0.0),
+                                    np.where(neg > 0, neg * lower_gap, 0.0)])
+        comp = max(comp, float(np.max(np.abs(terms), initial=0.0)))
+    return {"stationarity": float(stationarity), "primal": float(primal),
+            "complementarity": comp}
+
+
+def assert_kkt(ws: wbc.Workspace, tol: float = 1e-6) -> None:
+    """Every QP of the last tick satisfies its KKT conditions to ``tol`` (scaled by the data)."""
+    for label, qp, result in ws.last_qps():
+        scale = max(1.0, np.abs(qp[0]).max(), np.abs(qp[1]).max(initial=0.0))
+        res = kkt_residuals(qp, result)
+        for what, value in res.items():
+            assert value <= tol * scale, f"{label}: KKT {what} residual {value:.2e}"
