@@ -416,34 +416,35 @@ class MobileManipulator:
         self._valid = True
         self._com_valid = False
 
+    @staticmethod
+    def _same(value, cached: np.ndarray) -> bool:
+        """Whether ``value`` equals the cached array (cheap; any non-array input is "new")."""
+        return type(value) is np.ndarray and value.shape == cached.shape and (value == cached).all()
+
     def _ensure(self, q) -> None:
+        """Kinematics at ``q`` (``None``: the last update's)."""
         if q is None:
             if not self._valid:
                 raise RuntimeError(f"robot {self.name!r}: pass q or call update(q) first")
             return
-        if (
-            self._valid
-            and type(q) is np.ndarray
-            and q.shape == self._q.shape
-            and (q == self._q).all()
-        ):
-            return
-        self.update(q)
+        if not (self._valid and self._same(q, self._q)):
+            self.update(q)
 
     def _ensure_velocity(self, q, v) -> None:
-        self._ensure(q)
+        """Kinematics at ``(q, v)`` (``None``: the last update's), with one update at most."""
         if v is None:
+            self._ensure(q)
             if not self._has_v:
                 raise RuntimeError(f"robot {self.name!r}: pass v or call update(q, v) first")
             return
-        if (
-            self._has_v
-            and type(v) is np.ndarray
-            and v.shape == self._v.shape
-            and (v == self._v).all()
-        ):
-            return
-        self.update(self._q, v)
+        if q is None:
+            if not self._valid:
+                raise RuntimeError(f"robot {self.name!r}: pass q or call update(q) first")
+            q_same = True
+        else:
+            q_same = self._valid and self._same(q, self._q)
+        if not (q_same and self._has_v and self._same(v, self._v)):
+            self.update(self._q if q is None else q, v)
 
     # ------------------------------------------------------------------ frame quantities
     def frame_pose(
