@@ -1,4 +1,4 @@
-"""Generality of stacks (accelerations, torques, inequalities only) and clear errors on bad input."""
+"""Generality of stacks (accelerations, torques, inequalities) and clear errors on bad input."""
 
 from __future__ import annotations
 

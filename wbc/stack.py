@@ -94,8 +94,8 @@ class Stack:
         min_norm: bool | None = None,
         rank_tol: float = 1e-9,
     ) -> None:
-        if isinstance(variables, int):
-            variables = Variables(x=variables)
+        if isinstance(variables, (int, np.integer)):
+            variables = Variables(x=int(variables))
         elif not isinstance(variables, Variables):
             variables = Variables(variables)
         self.variables = variables
@@ -195,10 +195,10 @@ class Stack:
         if name in self._names:
             raise WbcError(f"a task named {name!r} is already in the stack")
         task.name = name  # unnamed tasks are named by the stack, so their parameters are too
-        self._names.add(name)
         terms = list(task.terms(self))
         if not terms:
             raise WbcError(f"task {name!r} produced no terms")
+        self._names.add(name)
         return [Entry(t, name, weight) for t in terms]
 
     # ------------------------------------------------------------------ use

@@ -163,8 +163,12 @@ class Workspace:
             t0 = time.perf_counter()
             state.evaluate()
             rank = self._append_frozen_rows(state, x)
+            consistent = block.kind != SCALING_LP or self._compress_task_rows(state)
             t1 = time.perf_counter()
-            result = self._solve_block(state)
+            result = self._solve_block(state) if consistent else QPResult(
+                np.zeros(block.n_z), Status.INFEASIBLE, np.zeros(block.m_total),
+                np.zeros(block.n_z), message="the task's equations are inconsistent (target "
+                "outside the range of its Jacobian): no scale s > 0 can hold them")
             t2 = time.perf_counter()
             timings.assembly += t1 - t0
             timings.solve += t2 - t1
@@ -212,8 +216,14 @@ class Workspace:
         if not block.n_frozen_cost:
             return 0
         # Keep A_j x = A_j x_j* for every earlier level j, as an orthonormal basis of the
-        # stacked rows' row space: backends never see dependent equalities.
-        _, sv, Vt = np.linalg.svd(self._E[:block.n_frozen_cost], full_matrices=False)
+        # stacked rows' row space: backends never see dependent equalities. Variables fixed by
+        # their bounds (lb == ub, e.g. pinned by a zero mobility) are left out of the rows, or
+        # the rows would repeat those bounds.
+        E = self._E[:block.n_frozen_cost]
+        fixed = state.lb[:n] == state.ub[:n]
+        if fixed.any():
+            E = E * ~fixed
+        _, sv, Vt = np.linalg.svd(E, full_matrices=False)
         rank = int(np.count_nonzero(sv > max(_ABS_RANK_TOL, self.compiled.rank_tol * sv[0])))
         end = row + block.m_frozen_eq
         rows = state.A[row:end, :n]
@@ -225,6 +235,26 @@ class Workspace:
         state.lA[row + rank:end] = -np.inf
         state.uA[row + rank:end] = np.inf
         return rank
+
+    def _compress_task_rows(self, state: _BlockState) -> bool:
+        """Replace a scaling LP's equality rows ``[A, −t] z = −r0`` by an orthonormal basis of
+        their row space (rank-deficient tasks would hand the backend dependent equalities).
+        Returns ``False`` if the rows are inconsistent."""
+        block = state.block
+        rows = slice(block.m_hard, block.m_hard + block.m_task)
+        M, rhs = state.A[rows], state.lA[rows]
+        U, sv, Vt = np.linalg.svd(M, full_matrices=False)
+        rank = int(np.count_nonzero(sv > max(_ABS_RANK_TOL, self.compiled.rank_tol * sv[0])))
+        c = U[:, :rank].T @ rhs
+        if np.linalg.norm(rhs - U[:, :rank] @ c) > 1e-9 * max(1.0, np.linalg.norm(rhs)):
+            return False
+        M[:rank] = Vt[:rank]
+        M[rank:] = 0.0
+        state.lA[rows][:rank] = c
+        state.uA[rows][:rank] = c
+        state.lA[rows][rank:] = -np.inf
+        state.uA[rows][rank:] = np.inf
+        return True
 
     def _freeze_soft_rows(self, state: _BlockState, slack: np.ndarray) -> None:
         """Later levels keep this level's soft rows at their optimal violation ``w*``:
