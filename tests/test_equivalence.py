@@ -164,10 +164,13 @@ def _sns_problem(rng, m, n, rank):
 
 
 def _assert_sns_agreement(sns_x, sns_s, sol, tol=1e-7):
-    """Math note 4: the LP scale is never below SNS's; x is compared only when scales agree."""
+    """Math note 4: the LP scale is never below SNS's; x is compared only when scales agree.
+
+    x is compared to 1e-5: at a vertex a joint's value is the task residual divided by its
+    Jacobian column, which amplifies the LP's 1e-9 accuracy on s for small columns."""
     assert sol.scale >= sns_s - tol
     if abs(sol.scale - sns_s) < 1e-9:
-        np.testing.assert_allclose(sol.x, sns_x, atol=1e-6)
+        np.testing.assert_allclose(sol.x, sns_x, atol=1e-5)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -248,6 +248,7 @@ class Workspace:
         c = U[:, :rank].T @ rhs
         if np.linalg.norm(rhs - U[:, :rank] @ c) > 1e-9 * max(1.0, np.linalg.norm(rhs)):
             return False
+        c /= sv[:rank]  # the rows Vt = Σ⁻¹ Uᵀ M take the right-hand side Σ⁻¹ Uᵀ rhs
         M[:rank] = Vt[:rank]
         M[rank:] = 0.0
         state.lA[rows][:rank] = c
