@@ -1,5 +1,9 @@
 """The task library (``wbc.tasks``): every task turns itself into affine terms of a stack."""
 
+from .frame import FrameTask
+from .limits import ConfigurationLimit, VelocityLimit
 from .linear import Bounds, LinearConstraint, LinearTask
+from .posture import PostureTask
 
-__all__ = ["Bounds", "LinearConstraint", "LinearTask"]
+__all__ = ["Bounds", "ConfigurationLimit", "FrameTask", "LinearConstraint", "LinearTask",
+           "PostureTask", "VelocityLimit"]

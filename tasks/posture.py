@@ -1,0 +1,102 @@
+"""`PostureTask`: regulate the arm joints towards a reference configuration (velocity level).
+
+Pink's ``PostureTask`` (stephane-caron/pink) as an affine term over joint velocities ``v``::
+
+    cost = 1/2 Σ_i w_i (v_i − gain · (q*_i − q_i) / dt)²        over the arm joints i
+
+Pink minimises ``1/2 ||W (Δq + gain · (q ⊖ q*))||²`` over ``Δq = v · dt``; dividing by ``dt²``
+gives the cost above with ``w = cost²``.
+
+Base coordinates. DESIGN's robots order coordinates base first, then arm joints, and a mobile
+base's velocity coordinates need not match its configuration (a differential drive has
+``q_base = (x, y, θ)`` but ``v_base = (v, ω)``). The posture therefore acts on the *arm* only:
+the last ``n_arm`` entries of ``v`` and of ``q``, where the arm joints are 1-DoF (revolute or
+prismatic, so ``q_i ⊖ q*_i = q_i − q*_i``). ``n_arm`` is, in order: the ``joints`` argument,
+``robot.n_arm``, ``robot.nv − robot.base.nv``, or ``robot.nv`` when ``robot.nq == robot.nv``
+and the robot has no ``base`` (a fixed-base arm). The target is a full configuration (``nq``
+entries, as pink's); its base coordinates are ignored.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from wbc.errors import ShapeError, WbcError
+from wbc.terms import Cost, Task
+
+from .frame import _check_gain, _weights, velocity_block
+
+
+def arm_size(robot, joints: int | None = None) -> int:
+    """Number of trailing arm joints of ``robot`` (see the module docstring)."""
+    nq, nv = int(robot.nq), int(robot.nv)
+    if joints is None:
+        if getattr(robot, "n_arm", None) is not None:
+            joints = int(robot.n_arm)
+        elif getattr(getattr(robot, "base", None), "nv", None) is not None:
+            joints = nv - int(robot.base.nv)
+        elif nq == nv:
+            joints = nv
+        else:
+            raise WbcError(f"cannot tell the arm joints of a robot with nq = {nq} != nv = "
+                           f"{nv}: pass joints=<number of trailing arm joints>")
+    joints = int(joints)
+    if not 0 < joints <= min(nq, nv):
+        raise ShapeError(f"joints must be in 1..{min(nq, nv)}, got {joints}")
+    return joints
+
+
+class PostureTask(Task):
+    """Posture regulation of the arm joints (see the module docstring).
+
+    Args:
+        robot: the robot (``nq``, ``nv``, ``neutral()``; see :class:`wbc.Controller`).
+        gain: task gain ``α`` [-] (1 = dead-beat).
+        weight: ``w``, scalar or one per arm joint; equals pink's ``cost²``.
+        lm_damping: pink's Levenberg–Marquardt damping (adds ``μ/2 ||v||²``,
+            ``μ = lm_damping · Σ w_i (α e_i)²``).
+        name: task name; the target is ``"<name>.target"`` (``(nq,)``, default
+            ``robot.neutral()``).
+        joints: number of trailing arm joints regulated (default: see module docstring).
+        block: the joint-velocity block of the decision vector (``None``: all of it).
+
+    Parameters it declares: ``"q"`` (nq,), ``"dt"`` (1,), ``"<name>.target"`` (nq,).
+    """
+
+    def __init__(self, robot, gain: float = 1.0, weight=1.0, lm_damping: float = 0.0,
+                 name: str | None = None, joints: int | None = None,
+                 block: str | None = None) -> None:
+        self.nq, self.nv = int(robot.nq), int(robot.nv)
+        self.n_arm = arm_size(robot, joints)
+        what = f"PostureTask {name!r}"
+        self.gain = _check_gain(gain, what)
+        self.weight = _weights(weight, self.n_arm, what)
+        self.lm_damping = _check_gain(lm_damping, f"{what} (lm_damping)")
+        self.default_target = np.asarray(robot.neutral(), dtype=float).reshape(-1)
+        if self.default_target.shape != (self.nq,):
+            raise ShapeError(f"{what}: robot.neutral() has shape "
+                             f"{self.default_target.shape}, expected ({self.nq},)")
+        self.name = name
+        self.block = block
+        self.error = None
+
+    def terms(self, stack):
+        v = velocity_block(stack, self.block, self.nv, f"PostureTask {self.name!r}")
+        q = stack.parameter("q", self.nq)
+        dt = stack.parameter("dt", 1)
+        target = stack.parameter(f"{self.name}.target", self.nq, self.default_target)
+        k = self.n_arm
+        e = target[self.nq - k:] - q[self.nq - k:]
+        self.error = e
+        terms = [Cost(v[self.nv - k:], self.gain / dt * e, self.weight, self.name)]
+        if self.lm_damping > 0:
+            root = np.sqrt(self.weight)
+            root = ca.DM(root) if np.ndim(root) else float(root)
+            mu = self.lm_damping * self.gain ** 2 * ca.sumsqr(root * e)
+            terms.append(Cost(v, 0.0, mu, f"{self.name} (lm damping)"))
+        return terms
+
+    def __repr__(self) -> str:
+        return f"PostureTask(gain={self.gain}, weight={self.weight}, name={self.name!r})"
+
