@@ -7,6 +7,7 @@ function per priority level, and solved every tick by a swappable, persistent QP
 """
 
 from .compiler import CompiledStack
+from .controller import Controller
 from .errors import (
     BackendUnavailableError,
     BoundsOrderError,
@@ -27,7 +28,8 @@ from .workspace import Workspace
 __version__ = "0.1.0"
 
 __all__ = [
-    "Backend", "BackendUnavailableError", "BoundsOrderError", "CompiledStack", "Cost",
+    "Backend", "BackendUnavailableError", "BoundsOrderError", "CompiledStack", "Controller",
+    "Cost",
     "Equality", "InfeasibleError", "Inequality", "LevelResult", "NonAffineError",
     "NonFiniteError", "Parameter", "QPResult", "ShapeError", "Solution", "Stack", "Status",
     "Task", "Term", "Timings", "UnknownNameError", "VariableBounds", "Variables", "WbcError",

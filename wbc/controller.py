@@ -1,0 +1,402 @@
+"""`Controller`: a compiled stack closed around a robot model, one call per control tick.
+
+Model quantities
+----------------
+Tasks never call the robot. They declare *model-quantity parameters* under canonical names,
+and the controller fills them every tick from one kinematics update:
+
+=====================  ===========  ===========================================================
+name                   shape        value
+=====================  ===========  ===========================================================
+``"q"``                ``(nq,)``    the configuration passed to :meth:`Controller.step`
+``"v"``                ``(nv,)``    the velocity passed to :meth:`Controller.step` (0 if none)
+``"dt"``               ``(1,)``     the control period [s]
+``"pose[<frame>]"``    ``(4, 4)``   world pose of ``<frame>`` (homogeneous transform)
+``"J[<frame>]"``       ``(6, nv)``  frame Jacobian, rows ``[linear; angular]`` in world-aligned
+                                    axes at the frame origin (pinocchio
+                                    ``LOCAL_WORLD_ALIGNED``): the frame's twist is ``J v``
+``"Jdot_v[<frame>]"``  ``(6,)``     drift ``J̇ v`` in the same axes (origin's classical
+                                    acceleration at zero joint acceleration)
+=====================  ===========  ===========================================================
+
+With ``Controller(..., kinematics="compiled")`` the poses and Jacobians are computed inside the
+compiled level functions from ``"q"`` instead (same values; see :func:`compiled_kinematics`).
+
+Every other parameter is a *reference*, set through :meth:`Controller.step`'s keywords: key
+``k`` sets parameter ``k`` if it exists, else ``"k.target"`` (so ``step(q, ee=T)`` sets the
+target of the task named ``"ee"``). References keep their value until set again.
+
+Robot protocol (duck-typed; the core imports no robot)
+------------------------------------------------------
+* ``robot.nq``, ``robot.nv``;
+* ``robot.update(q, v=None)`` — one kinematics update (placements, Jacobians, and, when
+  ``v`` is given, what the drifts need). The controller passes ``v`` only if the stack uses a
+  drift ``"Jdot_v[...]"``, and skips the update when no frame quantity is left to fill;
+* ``robot.frame_pose(None, frame, out=A)``, ``robot.frame_jacobian(None, frame, "world",
+  out=A)``, ``robot.frame_drift(None, None, frame, out=A)`` — getters that read the last
+  update (``q=None``) and write into ``out`` (an ``(4, 4)``, ``(6, nv)`` or ``(6,)`` view,
+  possibly Fortran-ordered) without allocating where they can;
+* optionally ``robot.has_frame(name)`` and ``robot.frame_names``, for early, clear errors;
+* optionally ``robot.symbolic_frame(frame) -> casadi.Function`` (``q -> (pose, J)``), for
+  ``Controller(..., kinematics="compiled")``: poses and Jacobians are then part of the compiled
+  level functions (JIT-able) and the tick calls no kinematics at all.
+
+:class:`wbc.robots.fixed_base.FixedBaseRobot` and the mobile manipulators of
+:mod:`wbc.robots` implement it.
+
+The tick
+--------
+Write ``q``, ``v``, ``dt`` → ``robot.update`` → the frame getters (a loop over the few model
+quantities, never over tasks) → references → ``workspace.solve()`` (one compiled evaluation
+and one warm-started backend solve per priority level) → the fallback policy if the solve
+failed. ``solution.timings.model`` holds the first four steps.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import time
+import warnings
+from functools import partial
+from math import isfinite
+
+import casadi as ca
+import numpy as np
+
+from .compiler import CompiledStack
+from .errors import InfeasibleError, NonFiniteError, ShapeError, UnknownNameError, WbcError
+from .qp import Status
+from .solution import Solution
+from .stack import Stack
+from .workspace import BackendSpec, Workspace
+
+FALLBACKS = ("hold", "last", "raise")
+_FRAME_QUANTITY = re.compile(r"^(pose|J|Jdot_v)\[(.+)\]$")
+
+
+class Controller:
+    """A stack compiled for a robot, solved every control tick.
+
+    Args:
+        robot: an object with the robot protocol (see the module docstring).
+        stack: the :class:`~wbc.Stack` (compiled here, once).
+        backend: backend name (``wbc.solvers.available_backends()``) or a zero-argument
+            factory returning a :class:`~wbc.Backend`.
+        profile: tolerance profile of the backend, ``"default"`` or ``"tight"``.
+        dt: control period [s], written into parameter ``"dt"`` every tick.
+        fallback: what to command when a solve fails (the solution still says why):
+            ``"hold"`` — zeros (for a velocity-level stack: stop); ``"last"`` — the previous
+            command (zeros if none); ``"raise"`` — raise :class:`~wbc.InfeasibleError`.
+        warm_start: warm-start every QP from its previous solution.
+        kinematics: ``"numeric"`` (default) — frame poses and Jacobians come from the robot's
+            getters every tick; ``"compiled"`` — they are computed *inside* the compiled level
+            functions from parameter ``"q"``, with the robot's ``symbolic_frame(frame)``
+            (``q -> (pose, J)`` as a CasADi function): the tick then calls no kinematics at
+            all unless a drift ``"Jdot_v[...]"`` is used. Those parameters then no longer
+            exist in the workspace. Best with ``jit=True``.
+        jit: compile the level functions to C with CasADi's JIT (needs a C compiler, costs
+            about half a second per level at construction; evaluation drops from ≈ 8 µs to
+            ≈ 0.6 µs for a Panda pose + posture level). Without a compiler: a warning and the
+            CasADi virtual machine.
+        **options: backend options overriding the profile.
+
+    Attributes:
+        last_solution: the :class:`~wbc.Solution` of the last tick. It also carries
+            ``fallback``: ``None`` when the QP was solved, else the policy that produced the
+            command (and its ``message`` says so).
+        last_command: the command returned by the last :meth:`step`.
+        workspace: the :class:`~wbc.Workspace` (parameters, buffers, live backends).
+        model_parameters: the parameter names the model stage fills.
+        reference_names: the keywords :meth:`step` accepts.
+
+    Example:
+        >>> from wbc.robots.fixed_base import load_panda          # doctest: +SKIP
+        >>> from wbc.tasks import FrameTask, ConfigurationLimit   # doctest: +SKIP
+        >>> robot = load_panda()                                  # doctest: +SKIP
+        >>> stack = wbc.Stack(wbc.Variables(v=robot.nv), damping=1e-3)  # doctest: +SKIP
+        >>> stack.add(FrameTask(robot, "ee", gain=0.5, name="ee"))      # doctest: +SKIP
+        >>> stack.constrain(ConfigurationLimit(robot))                  # doctest: +SKIP
+        >>> ctrl = wbc.Controller(robot, stack, dt=0.01)                # doctest: +SKIP
+        >>> v = ctrl.step(q, ee=T_target)                               # doctest: +SKIP
+    """
+
+    def __init__(self, robot, stack: Stack, backend: BackendSpec = "daqp",
+                 profile: str = "default", dt: float = 0.01, fallback: str = "hold",
+                 warm_start: bool = True, kinematics: str = "numeric", jit: bool = False,
+                 **options) -> None:
+        if fallback not in FALLBACKS:
+            raise WbcError(f"unknown fallback {fallback!r}; use one of {list(FALLBACKS)}")
+        self.robot = robot
+        self.stack = stack
+        self.fallback = fallback
+        self.nq, self.nv = int(robot.nq), int(robot.nv)
+        self.compiled = stack.compile()
+        if kinematics == "compiled":
+            self.compiled = compiled_kinematics(self.compiled, robot)
+        elif kinematics != "numeric":
+            raise WbcError(f"kinematics must be 'numeric' or 'compiled', got {kinematics!r}")
+        self.kinematics = kinematics
+        if jit:
+            self.compiled = jit_compiled(self.compiled)
+        self.workspace = Workspace(self.compiled, backend, profile, warm_start, **options)
+        self.last_solution: Solution | None = None
+        self.last_command: np.ndarray | None = None
+        self._q = self._v = self._dt = None
+        self._needs_v = self._needs_drift = False
+        self._fillers: list = []
+        self.model_parameters: list[str] = []
+        self._plan()
+        self.dt = dt
+        self._references = {}  # keyword -> (parameter name, view, allow_inf), cached
+
+    # ------------------------------------------------------------------ planning
+    def _plan(self) -> None:
+        """Map every model-quantity parameter to a writer into its view of ``p``."""
+        ws, robot = self.workspace, self.robot
+        for name, (_, shape, _) in self.compiled.parameters.items():
+            expected = None
+            if name == "q":
+                expected, self._q = (self.nq, 1), ws.view(name).reshape(-1)
+            elif name == "v":
+                expected, self._v = (self.nv, 1), ws.view(name).reshape(-1)
+                self._needs_v = True
+            elif name == "dt":
+                expected, self._dt = (1, 1), ws.view(name).reshape(-1)
+            else:
+                match = _FRAME_QUANTITY.match(name)
+                if match is None:
+                    continue
+                kind, frame = match.groups()
+                self._check_frame(frame, name)
+                view = ws.view(name)
+                if kind == "pose":
+                    expected = (4, 4)
+                    self._fillers.append(partial(robot.frame_pose, None, frame, out=view))
+                elif kind == "J":
+                    expected = (6, self.nv)
+                    self._fillers.append(
+                        partial(robot.frame_jacobian, None, frame, "world", out=view))
+                else:
+                    expected = (6, 1)
+                    self._needs_v = self._needs_drift = True
+                    self._fillers.append(
+                        partial(robot.frame_drift, None, None, frame, out=view.reshape(-1)))
+            if shape != expected:
+                raise ShapeError(f"model parameter {name!r} is declared with shape {shape}, "
+                                 f"but the robot gives {expected}")
+            self.model_parameters.append(name)
+        self._zero_v = np.zeros(self.nv)
+
+    def _check_frame(self, frame: str, name: str) -> None:
+        robot = self.robot
+        known = getattr(robot, "frame_names", None)
+        has_frame = getattr(robot, "has_frame", None)
+        if has_frame is not None:
+            ok = has_frame(frame)
+        elif known is not None:
+            ok = frame in known
+        else:
+            return
+        if not ok:
+            raise UnknownNameError(f"parameter {name!r}: the robot has no frame {frame!r}"
+                                   + (f"; frames are {sorted(known)}" if known else ""))
+
+    @property
+    def reference_names(self) -> list[str]:
+        """Keywords :meth:`step` accepts: every non-model parameter, and the task names of the
+        ``"<task>.target"`` parameters."""
+        names = []
+        for name in self.compiled.parameters:
+            if name in self.model_parameters:
+                continue
+            names.append(name)
+            if name.endswith(".target"):
+                names.append(name[: -len(".target")])
+        return sorted(names)
+
+    @property
+    def dt(self) -> float:
+        """Control period [s]."""
+        return self._dt_value
+
+    @dt.setter
+    def dt(self, value: float) -> None:
+        value = float(value)
+        if not np.isfinite(value) or value <= 0:
+            raise WbcError(f"dt must be a finite number > 0, got {value!r}")
+        self._dt_value = value
+
+    # ------------------------------------------------------------------ references
+    def _reference(self, key: str):
+        ref = self._references.get(key)
+        if ref is None:
+            params = self.compiled.parameters
+            name = key if key in params else f"{key}.target"
+            if name not in params or name in self.model_parameters:
+                raise UnknownNameError(
+                    f"unknown reference {key!r}; references are {self.reference_names}"
+                    + (" (model quantities are filled by the controller; set the period "
+                       "with controller.dt)" if key in self.model_parameters else ""))
+            _, shape, allow_inf = params[name]
+            ref = self._references[key] = (name, self.workspace.view(name), allow_inf)
+        return ref
+
+    def set_references(self, **references) -> None:
+        """Set references by keyword without solving (checked: names first, then shape, NaN,
+        inf; nothing is written if a name is unknown)."""
+        resolved = [(key, self._reference(key), value) for key, value in references.items()]
+        for key, (name, view, allow_inf), value in resolved:
+            arr = np.asarray(value, dtype=float)
+            if arr.shape != view.shape:
+                if arr.size != view.size or (view.shape[1] != 1 and arr.ndim != 2):
+                    shown = view.shape if view.shape[1] != 1 else (view.shape[0],)
+                    raise ShapeError(f"reference {key!r} (parameter {name!r}) expects shape "
+                                     f"{shown}, got {arr.shape}")
+                arr = arr.reshape(view.shape)
+            finite = np.isfinite(arr).all() if not allow_inf else not np.isnan(arr).any()
+            if not finite:
+                raise NonFiniteError(f"reference {key!r} (parameter {name!r}) contains NaN"
+                                     + ("" if allow_inf else " or inf"))
+            view[...] = arr
+
+    # ------------------------------------------------------------------ the tick
+    def step(self, q, v=None, **references) -> np.ndarray:
+        """One control tick: model stage, references, solve, fallback.
+
+        Args:
+            q: configuration ``(nq,)``.
+            v: velocity ``(nv,)`` (used by ``"v"`` and the drifts; zeros if ``None``).
+            **references: reference values by keyword (see the module docstring).
+
+        Returns:
+            The command: the decision vector ``x`` of the solution, or the fallback's.
+        """
+        t0 = time.perf_counter()
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.nq,):
+            raise ShapeError(f"q must have shape ({self.nq},), got {q.shape}")
+        if not isfinite(q.dot(q)):
+            raise NonFiniteError("q contains NaN or inf")
+        if v is not None:
+            v = np.asarray(v, dtype=float)
+            if v.shape != (self.nv,):
+                raise ShapeError(f"v must have shape ({self.nv},), got {v.shape}")
+            if not isfinite(v.dot(v)):
+                raise NonFiniteError("v contains NaN or inf")
+        if self._q is not None:
+            self._q[:] = q
+        if self._dt is not None:
+            self._dt[0] = self._dt_value
+        if self._needs_v:
+            if v is None:
+                v = self._zero_v
+            if self._v is not None:
+                self._v[:] = v
+        if self._fillers:
+            self.robot.update(q, v if self._needs_drift else None)
+            for fill in self._fillers:
+                fill()
+        if references:
+            self.set_references(**references)
+        t1 = time.perf_counter()
+        solution = self.workspace.solve()
+        solution.timings.model = t1 - t0
+        if solution.status is Status.SOLVED:
+            solution.fallback = None
+            command = solution.x
+        else:
+            command = self._fall_back(solution)
+        self.last_solution = solution
+        self.last_command = command
+        return command
+
+    def _fall_back(self, solution: Solution) -> np.ndarray:
+        policy = self.fallback
+        if policy == "raise":
+            solution.fallback = "raise"
+            self.last_solution = solution
+            raise InfeasibleError(f"controller: {solution.message or solution.status.value}")
+        if policy == "last" and self.last_command is not None:
+            command = self.last_command.copy()
+            what = "previous command repeated"
+        else:
+            command = np.zeros(self.compiled.n)
+            what = "zero command (hold)"
+        solution.fallback = policy
+        solution.message = (f"{solution.message}; " if solution.message else "") + \
+            f"fallback {policy!r}: {what}"
+        return command
+
+    def __repr__(self) -> str:
+        return (f"Controller(robot={self.robot!r}, backend={self.workspace.backend_name!r}, "
+                f"dt={self.dt}, fallback={self.fallback!r})")
+
+
+def jit_compiled(compiled: CompiledStack, flags: tuple[str, ...] = ("-O2",)) -> CompiledStack:
+    """A copy of ``compiled`` whose level functions are JIT-compiled C (same inputs/outputs).
+
+    The compiled stack is immutable: this returns a new one (``dataclasses.replace``). If no C
+    compiler works, warns and returns ``compiled`` unchanged.
+    """
+    blocks = []
+    try:
+        for block in compiled.blocks:
+            fn = block.function
+            jitted = ca.Function(f"{fn.name()}_jit", fn.sx_in(), fn.call(fn.sx_in()),
+                                 fn.name_in(), fn.name_out(),
+                                 {"jit": True, "compiler": "shell",
+                                  "jit_options": {"flags": list(flags), "verbose": False}})
+            blocks.append(dataclasses.replace(block, function=jitted))
+    except RuntimeError as err:
+        warnings.warn(f"JIT compilation failed, using CasADi's virtual machine: {err}",
+                      RuntimeWarning, stacklevel=2)
+        return compiled
+    return dataclasses.replace(compiled, blocks=tuple(blocks))
+
+
+def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
+    """A copy of ``compiled`` whose level functions compute ``"pose[<frame>]"`` and
+    ``"J[<frame>]"`` from parameter ``"q"`` with ``robot.symbolic_frame(frame)`` (those two
+    parameters leave the layout; ``"q"`` is appended if the stack had none)."""
+    symbolic = getattr(robot, "symbolic_frame", None)
+    if symbolic is None:
+        raise WbcError(f"kinematics='compiled' needs robot.symbolic_frame(frame) -> "
+                       f"casadi.Function(q -> (pose, J)); {type(robot).__name__} has none")
+    params = dict(compiled.parameters)
+    n_p, nq = compiled.defaults.shape[0], int(robot.nq)
+    defaults = compiled.defaults
+    if "q" not in params:
+        params["q"] = (n_p, (nq, 1), False)
+        defaults = np.concatenate([defaults, np.full(nq, np.nan)])
+    p = ca.SX.sym("p", defaults.shape[0])
+    q_offset = params["q"][0]
+    q = p[q_offset:q_offset + nq]
+    entries = [p[i] for i in range(n_p)]
+    replaced = False
+    for name, (offset, shape, _) in compiled.parameters.items():
+        match = _FRAME_QUANTITY.match(name)
+        if match is None or match.group(1) == "Jdot_v":
+            continue
+        kind, frame = match.groups()
+        pose, J = symbolic(frame)(q)
+        value = pose if kind == "pose" else J
+        if value.shape != shape:
+            raise ShapeError(f"robot.symbolic_frame({frame!r}) gives {kind} of shape "
+                             f"{value.shape}, the stack declares {shape}")
+        for c in range(shape[1]):
+            for r in range(shape[0]):
+                entries[offset + c * shape[0] + r] = value[r, c]
+        del params[name]
+        replaced = True
+    if not replaced:
+        return compiled
+    p_in = ca.vertcat(*entries)
+    blocks = []
+    for block in compiled.blocks:
+        fn = block.function
+        outputs = fn.call([p_in])
+        new = ca.Function(f"{fn.name()}_kin", [p], outputs, fn.name_in(), fn.name_out())
+        blocks.append(dataclasses.replace(block, function=new))
+    return dataclasses.replace(compiled, parameters=params, defaults=defaults,
+                               blocks=tuple(blocks))
