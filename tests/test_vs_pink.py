@@ -1,0 +1,37 @@
+"""The pink comparison runs end to end (tiny tick counts; no timing is asserted)."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import pytest
+
+from wbc.experiments import vs_pink
+
+KEYS = {"wbc_median_s", "pink_median_s", "ratio", "command_diff_max", "agree",
+        "final_position_diff_m"}
+
+
+def test_vs_pink_writes_its_json(tmp_path, capsys):
+    pytest.importorskip("pink")
+    code = vs_pink.main(["--ticks", "30", "--backends", "quadprog", "--no-jit",
+                         "--out", str(tmp_path)])
+    assert code == 0
+    report = json.loads((tmp_path / "vs_pink.json").read_text())
+    assert set(report["backends"]) == {"quadprog"}
+    for result in report["backends"].values():
+        assert KEYS <= set(result)
+        assert result["wbc_median_s"] > 0 and result["pink_median_s"] > 0
+        assert result["wbc_failures"] == 0
+        assert result["command_diff_max"] < 1e-6  # exact solvers: the same QP
+    assert {"platform", "cpu", "python", "packages"} <= set(report["machine"])
+    out = capsys.readouterr().out
+    assert "| quadprog |" in out and "wbc / pink" in out
+
+
+def test_vs_pink_skips_cleanly_without_pink(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "pink", None)  # import pink -> ImportError
+    assert vs_pink.main(["--ticks", "5", "--out", str(tmp_path)]) == 0
+    assert "skipped: pip install 'wbc[pink]'" in capsys.readouterr().out
+    assert not (tmp_path / "vs_pink.json").exists()
