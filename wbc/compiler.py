@@ -91,6 +91,7 @@ class CompiledStack:
         blocks: the QPs in solving order.
         n_e: rows of the frozen cost-row store; ``n_s``: rows of the frozen soft-row store.
         rank_tol: relative tolerance of the rank compression.
+        freeze_tol: half-width of the band frozen rows are kept in (relative).
     """
 
     variables: Variables
@@ -100,6 +101,7 @@ class CompiledStack:
     n_e: int
     n_s: int
     rank_tol: float
+    freeze_tol: float
 
     @property
     def n(self) -> int:
@@ -200,7 +202,8 @@ def compile_stack(stack) -> CompiledStack:
                               m_task=0, m_cost=0, e_offset=n_e, s_offset=n_s,
                               n_frozen_soft=n_s, n_frozen_cost=n_e, m_frozen_eq=min(n_e, n),
                               scale_index=None))
-    return CompiledStack(variables, layout, defaults, tuple(blocks), n_e, n_s, stack.rank_tol)
+    return CompiledStack(variables, layout, defaults, tuple(blocks), n_e, n_s, stack.rank_tol,
+                         stack.freeze_tol)
 
 
 def _level_terms(entries, x):

@@ -74,6 +74,13 @@ class Stack:
             the answer unique when the levels leave freedom. Default: on when the last level
             is undamped.
         rank_tol: relative singular-value tolerance of the frozen rows' rank compression.
+        freeze_tol: frozen rows hold ``|a x − a x*| <= freeze_tol·(1 + |a x*|)`` rather than an
+            exact equality. At a vertex (a saturated optimum, as after a scaling LP) the exact
+            equalities and the active bounds meet in one point, and a solver's last-digit error
+            can make the next level infeasible for an active-set solver (seen with quadprog);
+            a band of ~1e-9 removes that, but interior-point and augmented-Lagrangian solvers
+            (clarabel, proxqp) handle thin bands worse than equalities, so the default ``0``
+            keeps exact equalities.
 
     Example:
         >>> import numpy as np, wbc
@@ -93,6 +100,7 @@ class Stack:
         mobility: np.ndarray | None = None,
         min_norm: bool | None = None,
         rank_tol: float = 1e-9,
+        freeze_tol: float = 0.0,
     ) -> None:
         if isinstance(variables, (int, np.integer)):
             variables = Variables(x=int(variables))
@@ -111,6 +119,7 @@ class Stack:
         self.metric, self.pinned = _metric_and_pins(n, metric, mobility)
         self._min_norm = min_norm
         self.rank_tol = float(rank_tol)
+        self.freeze_tol = float(freeze_tol)
         self.parameters: dict[str, Parameter] = {}
         self.levels: dict[int, list[Entry]] = {}
         self.scaling_levels: set[int] = set()

@@ -230,8 +230,9 @@ class Workspace:
         rows[:rank] = Vt[:rank]
         rows[rank:] = 0.0
         rhs = Vt[:rank] @ x
-        state.lA[row:row + rank] = rhs
-        state.uA[row:row + rank] = rhs
+        band = self.compiled.freeze_tol * (1.0 + np.abs(rhs))
+        state.lA[row:row + rank] = rhs - band
+        state.uA[row:row + rank] = rhs + band
         state.lA[row + rank:end] = -np.inf
         state.uA[row + rank:end] = np.inf
         return rank
