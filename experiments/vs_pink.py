@@ -272,17 +272,20 @@ def main(argv: list[str] | None = None) -> int:
 
     ours, theirs = set(available_backends()), set(qpsolvers.available_solvers)
     skipped = [b for b in backends if b not in ours or b not in theirs]
-    results = {}
+    results, errors = {}, {}
     for backend in backends:
         if backend in skipped:
             continue
-        results[backend] = run_backend(backend, args.ticks, args.jit)
+        try:
+            results[backend] = run_backend(backend, args.ticks, args.jit)
+        except Exception as err:  # one broken backend must not hide the others' results
+            errors[backend] = f"{type(err).__name__}: {err}"
     machine = describe_machine()
     report = {"problem": {"robot": "panda (example-robot-data, fingers locked)", "dt": DT,
                           "frame_gain": FRAME_GAIN, "posture_gain": POSTURE_GAIN,
                           "posture_cost": POSTURE_COST, "limit_gain": LIMIT_GAIN,
                           "damping": DAMPING, "q0": Q0.tolist()},
-              "backends": results, "skipped": skipped, "machine": machine}
+              "backends": results, "skipped": skipped, "errors": errors, "machine": machine}
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "vs_pink.json"
     path.write_text(json.dumps(report, indent=2))
@@ -291,6 +294,8 @@ def main(argv: list[str] | None = None) -> int:
           f"python {machine['python']}; jit={args.jit}; {args.ticks} ticks per backend")
     if skipped:
         print(f"skipped (not available on both sides): {', '.join(skipped)}")
+    for backend, message in errors.items():
+        print(f"failed: {backend}: {message}")
     print(f"wrote {path}")
     return 0
 
