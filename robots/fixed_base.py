@@ -114,6 +114,11 @@ class FixedBaseRobot:
         """The neutral configuration (zeros, clipped into the position limits)."""
         return np.clip(pin.neutral(self.model), self.limits.q_lower, self.limits.q_upper)
 
+    def integrate(self, q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
+        """Configuration after ``dt`` [s] at constant joint velocity ``v`` (pinocchio's
+        integration on the model's configuration space; ``q + v·dt`` for 1-DoF joints)."""
+        return pin.integrate(self.model, np.asarray(q, float), np.asarray(v, float) * dt)
+
     def update(self, q: np.ndarray, v: np.ndarray | None = None) -> None:
         """One kinematics update at ``q`` (and ``v``, for the drifts): joint placements, joint
         Jacobians, frame placements."""

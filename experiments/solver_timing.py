@@ -1,0 +1,336 @@
+"""Solver-timing study (``wbc bench``): the whole control tick, per robot, stack and backend.
+
+For each catalogue robot and each stack
+
+* ``one_level``    — end-effector pose + weak posture, damping, position and velocity limits;
+* ``two_levels``   — pose strictly above posture;
+* ``three_levels`` — end-effector position, then its orientation, then posture;
+* ``acceleration`` — decision = joint accelerations: a PD end-effector position task with the
+  drift ``J̇v``, a PD posture, acceleration bounds;
+
+a closed loop tracking a circle with the end effector is run once with the reference backend
+(clarabel, tight profile). Every backend then replays exactly that state sequence
+(``≥ 1000`` ticks after a warm-up), so that all backends solve the same problems with realistic
+warm starts; per tick it records the wall time of ``Controller.step`` and its split into
+kinematics (model stage) / assembly / solve, whether it succeeded, and the largest difference
+of its command from the reference's.
+
+The scaling study times the ``one_level`` stack on fixed-base serial chains of 7 to 100
+joints. Outputs, in ``--out``: ``solver_timing.json`` (raw per-tick samples [µs] and the
+machine), ``solver_timing.md`` (tables) and ``solver_timing.png`` / ``scaling.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+import wbc
+import wbc.robots
+from wbc.experiments.machine import describe_machine
+from wbc.robots.fixed_base import FixedBaseRobot
+from wbc.solvers import available_backends
+from wbc.tasks import Bounds, ConfigurationLimit, FrameTask, PostureTask, VelocityLimit
+
+STACKS = ("one_level", "two_levels", "three_levels", "acceleration")
+REFERENCE = ("clarabel", "tight")
+DT = 0.01  # control period [s]
+CIRCLE_RADIUS, CIRCLE_PERIOD = 0.1, 4.0  # end-effector target path [m], [s]
+KP, KD = 20.0, 10.0  # acceleration-level PD gains [1/s²], [1/s]
+SCALING_JOINTS = (7, 15, 30, 50, 100)
+
+
+# ----------------------------------------------------------------------------- stacks
+def build_stack(robot, kind: str) -> wbc.Stack:
+    """One of :data:`STACKS` for ``robot`` (velocity level unless ``kind == "acceleration"``)."""
+    if kind == "acceleration":
+        return _acceleration_stack(robot)
+    stack = wbc.Stack(wbc.Variables(v=robot.nv), damping=1e-3)
+    posture = PostureTask(robot, gain=0.5, weight=1e-2, name="posture")
+    if kind == "one_level":
+        stack.add(FrameTask(robot, "ee", gain=0.5, name="ee"), priority=0)
+        stack.add(posture, priority=0)
+    elif kind == "two_levels":
+        stack.add(FrameTask(robot, "ee", gain=0.5, name="ee"), priority=0)
+        stack.add(posture, priority=1)
+    elif kind == "three_levels":
+        stack.add(FrameTask(robot, "ee", gain=0.5, position_only=True, name="ee"), priority=0)
+        stack.add(FrameTask(robot, "ee", gain=0.5, name="ee_pose"), priority=1)
+        stack.add(posture, priority=2)
+    else:
+        raise wbc.WbcError(f"unknown stack {kind!r}; stacks are {list(STACKS)}")
+    stack.constrain(ConfigurationLimit(robot, gain=0.5, name="position_limits"))
+    stack.constrain(VelocityLimit(robot, name="velocity_limits"))
+    return stack
+
+
+def _acceleration_stack(robot) -> wbc.Stack:
+    """PD tracking at acceleration level: ``J a + J̇v = Kp (p* − p) − Kd J v`` (position rows)
+    and ``a_arm = Kp (q*_arm − q_arm) − Kd v_arm`` (weak), within acceleration bounds."""
+    nq, nv, n_arm = robot.nq, robot.nv, robot.n_arm
+    a = wbc.Variables(a=nv)
+    stack = wbc.Stack(a, damping=1e-3)
+    J = stack.parameter("J[ee]", (6, nv))
+    drift = stack.parameter("Jdot_v[ee]", 6)
+    pose = stack.parameter("pose[ee]", (4, 4))
+    q, v = stack.parameter("q", nq), stack.parameter("v", nv)
+    target = stack.parameter("ee.target", (4, 4))
+    Jp = J[:3, :]
+    ee_acc = KP * (target[:3, 3] - pose[:3, 3]) - KD * (Jp @ v)
+    stack.add(wbc.Cost(Jp @ a["a"] + drift[:3], target=ee_acc, name="ee"), priority=0)
+    q_ref = stack.parameter("posture.target", nq, np.asarray(robot.neutral(), float))
+    arm = slice(nq - n_arm, nq)
+    posture_acc = KP * (q_ref[arm] - q[arm]) - KD * v[nv - n_arm:]
+    stack.add(wbc.Cost(a["a"][nv - n_arm:], target=posture_acc, weight=1e-2,
+                       name="posture"), priority=0)
+    lower = np.where(np.isfinite(robot.limits.a_lower), robot.limits.a_lower, -50.0)
+    upper = np.where(np.isfinite(robot.limits.a_upper), robot.limits.a_upper, 50.0)
+    stack.constrain(Bounds(lower, upper, name="acceleration_limits"))
+    return stack
+
+
+# ----------------------------------------------------------------------------- closed loop
+def _target(pose0: np.ndarray, t: float) -> np.ndarray:
+    """End-effector target at time ``t`` [s]: a circle in the y–z plane through the start."""
+    phase = 2 * np.pi * t / CIRCLE_PERIOD
+    T = pose0.copy()
+    T[1, 3] += CIRCLE_RADIUS * np.sin(phase)
+    T[2, 3] += CIRCLE_RADIUS * (np.cos(phase) - 1.0)
+    return T
+
+
+def reference_run(robot, kind: str, ticks: int, q0: np.ndarray | None = None) -> dict:
+    """Closed loop with the reference backend from ``q0`` (default ``robot.neutral()``);
+    returns the states, targets and commands."""
+    ctrl = wbc.Controller(robot, build_stack(robot, kind), backend=REFERENCE[0],
+                          profile=REFERENCE[1], dt=DT)
+    q = np.asarray(robot.neutral() if q0 is None else q0, float).copy()
+    v = np.zeros(robot.nv)
+    pose0 = np.array(robot.frame_pose(q, "ee"))
+    states, targets, commands = [], [], []
+    for k in range(ticks):
+        T = _target(pose0, k * DT)
+        refs = {"ee": T}
+        if kind == "three_levels":
+            refs["ee_pose"] = T
+        cmd = ctrl.step(q, v, **refs)
+        states.append((q.copy(), v.copy()))
+        targets.append(T)
+        commands.append(cmd.copy())
+        if kind == "acceleration":
+            v = v + cmd * DT
+        else:
+            v = cmd.copy()
+        q = robot.integrate(q, v, DT)
+    return {"states": states, "targets": targets, "commands": commands}
+
+
+def replay(robot, kind: str, backend: str, run: dict, warmup: int) -> dict:
+    """Time ``backend`` on the reference state sequence; raw samples in µs."""
+    ctrl = wbc.Controller(robot, build_stack(robot, kind), backend=backend, dt=DT)
+    samples = {"tick": [], "kinematics": [], "assembly": [], "solve": []}
+    ok, diff = [], []
+    for k, ((q, v), T) in enumerate(zip(run["states"], run["targets"], strict=True)):
+        refs = {"ee": T}
+        if kind == "three_levels":
+            refs["ee_pose"] = T
+        t0 = time.perf_counter()
+        cmd = ctrl.step(q, v, **refs)
+        elapsed = time.perf_counter() - t0
+        if k < warmup:
+            continue
+        sol = ctrl.last_solution
+        samples["tick"].append(elapsed * 1e6)
+        samples["kinematics"].append(sol.timings.model * 1e6)
+        samples["assembly"].append(sol.timings.assembly * 1e6)
+        samples["solve"].append(sol.timings.solve * 1e6)
+        ok.append(sol.ok)
+        diff.append(float(np.abs(cmd - run["commands"][k]).max()))
+    return {"samples": {key: np.round(val, 3).tolist() for key, val in samples.items()},
+            "success_rate": float(np.mean(ok)), "max_abs_diff_vs_reference": float(max(diff)),
+            "stats": {key: _stats(val) for key, val in samples.items()}}
+
+
+def _stats(samples) -> dict:
+    arr = np.asarray(samples, float)
+    return {"median": float(np.median(arr)), "p95": float(np.percentile(arr, 95)),
+            "max": float(arr.max())}
+
+
+# ----------------------------------------------------------------------------- scaling
+def serial_chain(n: int) -> FixedBaseRobot:
+    """A fixed-base chain of ``n`` revolute joints (axes alternating z, y; links 0.1 m) with
+    limits ±2.8 rad and ±2 rad/s, and an ``"ee"`` frame 0.1 m past the last joint."""
+    model = pin.Model()
+    parent = 0
+    for i in range(n):
+        joint = pin.JointModelRZ() if i % 2 == 0 else pin.JointModelRY()
+        placement = pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.1 if i else 0.0]))
+        parent = model.addJoint(parent, joint, placement, f"joint{i}")
+        model.appendBodyToJoint(parent, pin.Inertia.FromBox(0.5, 0.04, 0.04, 0.1),
+                                pin.SE3.Identity())
+    model.addFrame(pin.Frame("ee", parent, 0, pin.SE3(np.eye(3), np.array([0, 0, 0.1])),
+                             pin.FrameType.OP_FRAME))
+    model.lowerPositionLimit = np.full(n, -2.8)
+    model.upperPositionLimit = np.full(n, 2.8)
+    model.velocityLimit = np.full(n, 2.0)
+    return FixedBaseRobot(model, name=f"chain{n}")
+
+
+# ----------------------------------------------------------------------------- study
+def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, warmup: int,
+        scaling_ticks: int, scaling_joints: tuple[int, ...], log=print) -> dict:
+    """The whole study; returns the JSON-able report."""
+    report = {"machine": describe_machine(), "dt_s": DT, "ticks": ticks, "warmup": warmup,
+              "reference": "/".join(REFERENCE), "results": {}, "scaling": {}}
+    combos = [(r, s) for r in robots for s in stacks]
+    for i, (name, kind) in enumerate(combos, start=1):
+        robot = wbc.robots.load(name)
+        ref = reference_run(robot, kind, warmup + ticks)
+        for backend in backends:
+            log(f"[{i}/{len(combos)}] {name} / {kind} / {backend}")
+            report["results"].setdefault(name, {}).setdefault(kind, {})[backend] = replay(
+                robot, kind, backend, ref, warmup)
+    for j, n in enumerate(scaling_joints, start=1):
+        robot = serial_chain(n)
+        # start bent (the straight chain is singular)
+        ref = reference_run(robot, "one_level", warmup + scaling_ticks, np.full(n, 0.3))
+        for backend in backends:
+            log(f"[scaling {j}/{len(scaling_joints)}] {n} joints / {backend}")
+            result = replay(robot, "one_level", backend, ref, warmup)
+            report["scaling"].setdefault(backend, {})[str(n)] = {
+                "stats": result["stats"], "success_rate": result["success_rate"]}
+    return report
+
+
+def markdown(report: dict) -> str:
+    """Tables: per robot and stack, median / p95 / max tick and its split, per backend."""
+    out = [f"Machine: {report['machine']['cpu']}, {report['machine']['cores']} cores, "
+           f"Python {report['machine']['python']}. Ticks: {report['ticks']} after "
+           f"{report['warmup']} warm-up; reference {report['reference']}. Times in µs.", ""]
+    for name, per_stack in report["results"].items():
+        for kind, per_backend in per_stack.items():
+            out += [f"### {name} — {kind}", "",
+                    "| backend | tick median | p95 | max | kinematics | assembly | solve | "
+                    "success | max abs diff vs ref |", "|---|---|---|---|---|---|---|---|---|"]
+            for backend, r in per_backend.items():
+                s = r["stats"]
+                out.append(
+                    f"| {backend} | {s['tick']['median']:.1f} | {s['tick']['p95']:.1f} | "
+                    f"{s['tick']['max']:.0f} | {s['kinematics']['median']:.1f} | "
+                    f"{s['assembly']['median']:.1f} | {s['solve']['median']:.1f} | "
+                    f"{100 * r['success_rate']:.1f} % | {r['max_abs_diff_vs_reference']:.1e} |")
+            out.append("")
+    if report["scaling"]:
+        joints = sorted({int(n) for per in report["scaling"].values() for n in per})
+        out += ["### Scaling: median tick [µs] vs joints (one_level stack)", "",
+                "| backend | " + " | ".join(map(str, joints)) + " |",
+                "|---|" + "---|" * len(joints)]
+        for backend, per in report["scaling"].items():
+            cells = [f"{per[str(n)]['stats']['tick']['median']:.0f}" if str(n) in per else "-"
+                     for n in joints]
+            out.append(f"| {backend} | " + " | ".join(cells) + " |")
+    return "\n".join(out) + "\n"
+
+
+def plots(report: dict, out: Path) -> list[Path]:
+    """Median tick per backend (one panel per robot, bars per stack) and the scaling curves."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    results = report["results"]
+    if results:
+        fig, axes = plt.subplots(1, len(results), figsize=(5 * len(results), 4), squeeze=False)
+        for ax, (name, per_stack) in zip(axes[0], results.items(), strict=True):
+            kinds = list(per_stack)
+            backends = list(next(iter(per_stack.values())))
+            width = 0.8 / max(1, len(kinds))
+            for i, kind in enumerate(kinds):
+                med = [per_stack[kind][b]["stats"]["tick"]["median"] for b in backends]
+                ax.bar(np.arange(len(backends)) + i * width, med, width, label=kind)
+            ax.set_xticks(np.arange(len(backends)) + 0.4 - width / 2)
+            ax.set_xticklabels(backends, rotation=45, ha="right")
+            ax.set_yscale("log")
+            ax.set_ylabel("median tick [µs]")
+            ax.set_title(name)
+            ax.legend(fontsize=7)
+        fig.tight_layout()
+        path = out / "solver_timing.png"
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        written.append(path)
+    if report["scaling"]:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for backend, per in report["scaling"].items():
+            n = sorted(int(k) for k in per)
+            ax.plot(n, [per[str(k)]["stats"]["tick"]["median"] for k in n], "o-", label=backend)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("joints")
+        ax.set_ylabel("median tick [µs]")
+        ax.set_title("one_level stack on serial chains")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        path = out / "scaling.png"
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="wbc bench", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--robots", nargs="+", default=None, metavar="ROBOT",
+                        help=f"catalogue robots (default: all of {wbc.robots.names()})")
+    parser.add_argument("--stacks", nargs="+", default=list(STACKS), metavar="STACK",
+                        help=f"stacks (default: all of {list(STACKS)})")
+    parser.add_argument("--backends", nargs="+", default=None, metavar="BACKEND",
+                        help="backends (default: every available one)")
+    parser.add_argument("--ticks", type=int, default=1000, help="timed ticks (default 1000)")
+    parser.add_argument("--warmup", type=int, default=50, help="untimed first ticks")
+    parser.add_argument("--scaling-ticks", type=int, default=300,
+                        help="timed ticks per chain in the scaling study (default 300)")
+    parser.add_argument("--scaling-joints", type=int, nargs="*", default=list(SCALING_JOINTS),
+                        help="chain sizes of the scaling study (none: skip it)")
+    parser.add_argument("--out", type=Path, default=Path("results"),
+                        help="output folder (default ./results)")
+    args = parser.parse_args(argv)
+    robots = args.robots or wbc.robots.names()
+    unknown = sorted(set(robots) - set(wbc.robots.names()))
+    if unknown:
+        parser.error(f"unknown robot(s) {unknown}; the catalogue is {wbc.robots.names()}")
+    bad = sorted(set(args.stacks) - set(STACKS))
+    if bad:
+        parser.error(f"unknown stack(s) {bad}; stacks are {list(STACKS)}")
+    backends = args.backends or available_backends()
+    missing = sorted(set(backends) - set(available_backends()))
+    if missing:
+        parser.error(f"backend(s) {missing} not available; available: {available_backends()}")
+    if args.ticks < 1 or args.warmup < 0 or args.scaling_ticks < 1:
+        parser.error("--ticks and --scaling-ticks must be >= 1, --warmup >= 0")
+    if any(n < 2 for n in args.scaling_joints):
+        parser.error("--scaling-joints sizes must be >= 2")
+    report = run(robots, args.stacks, backends, args.ticks, args.warmup, args.scaling_ticks,
+                 tuple(args.scaling_joints), log=lambda msg: print(msg, flush=True))
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "solver_timing.json").write_text(json.dumps(report))
+    table = markdown(report)
+    (args.out / "solver_timing.md").write_text(table)
+    written = plots(report, args.out)
+    print(table)
+    print("wrote", ", ".join(str(p) for p in
+                             [args.out / "solver_timing.json", args.out / "solver_timing.md",
+                              *written]))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

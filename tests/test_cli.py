@@ -1,0 +1,94 @@
+"""The ``wbc`` command line: exit codes, output files, clear messages (no timing asserted)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from wbc.experiments import cli, microbench, solver_timing
+
+
+def test_list_names_robots_tasks_and_backends(capsys):
+    assert cli.main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert "mecanum_gen3" in out and "FrameTask" in out and "daqp" in out
+
+
+def test_no_command_prints_help_and_fails(capsys):
+    assert cli.main([]) == 2
+    assert "COMMAND" in capsys.readouterr().out
+
+
+def test_unknown_command_is_an_argparse_error(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["frobnicate"])
+    assert exc.value.code == 2
+    assert "invalid choice" in capsys.readouterr().err
+
+
+def test_demo_writes_a_table_and_json(tmp_path, capsys):
+    assert cli.main(["demo", "--ticks", "5", "--backends", "daqp", "quadprog",
+                     "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "| daqp |" in out and "| quadprog |" in out
+    report = json.loads((tmp_path / "microbench.json").read_text())
+    assert set(report["backends"]) == {"daqp", "quadprog"}
+    assert report["backends"]["daqp"]["failures"] == 0
+    assert report["backends"]["daqp"]["max_abs_diff_vs_reference"] < 1e-5
+
+
+def test_bench_writes_json_markdown_and_plots(tmp_path, capsys):
+    code = cli.main(["bench", "--robots", "mecanum_gen3", "--stacks", "one_level",
+                     "acceleration", "--backends", "proxqp", "--ticks", "5", "--warmup", "2",
+                     "--scaling-ticks", "3", "--scaling-joints", "7", "--out", str(tmp_path)])
+    assert code == 0
+    report = json.loads((tmp_path / "solver_timing.json").read_text())
+    for kind in ("one_level", "acceleration"):
+        result = report["results"]["mecanum_gen3"][kind]["proxqp"]
+        assert len(result["samples"]["tick"]) == 5
+        assert result["success_rate"] == 1.0
+    assert report["scaling"]["proxqp"]["7"]["success_rate"] == 1.0
+    assert "### mecanum_gen3 — one_level" in (tmp_path / "solver_timing.md").read_text()
+    for png in ("solver_timing.png", "scaling.png"):
+        assert (tmp_path / png).read_bytes()[:4] == b"\x89PNG"
+    assert "cpu" in report["machine"]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--robots", "r2d2"], "unknown robot"),
+    (["--stacks", "four_levels"], "unknown stack"),
+    (["--backends", "cplex"], "not available"),
+    (["--ticks", "0"], "--ticks"),
+    (["--ticks", "many"], "invalid int value"),
+])
+def test_bench_bad_options_give_a_clear_message(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        solver_timing.main(argv)
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_demo_bad_option(capsys):
+    with pytest.raises(SystemExit) as exc:
+        microbench.main(["--ticks", "0"])
+    assert exc.value.code == 2
+    assert "--ticks" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(shutil.which("wbc") is None, reason="console script not on PATH")
+def test_console_script_help():
+    for sub in ([], ["bench"], ["demo"], ["pink"]):
+        done = subprocess.run(["wbc", *sub, "--help"], capture_output=True, text=True,
+                              timeout=120)
+        assert done.returncode == 0, done.stderr
+        assert "usage" in done.stdout.lower()
+
+
+def test_module_entry_point():
+    done = subprocess.run([sys.executable, "-m", "wbc.experiments.cli", "list"],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
