@@ -14,6 +14,7 @@ transpose lands row-major, straight into row blocks of C-ordered numpy arrays.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
@@ -71,7 +72,7 @@ class QPBlock:
     def m_total(self) -> int:
         return self.m_top + self.n_frozen_soft + self.m_frozen_eq
 
-    @property
+    @cached_property
     def label(self) -> str:
         if self.kind == MIN_NORM:
             return "min-norm level"

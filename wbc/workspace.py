@@ -184,11 +184,12 @@ class Workspace:
                 s = min(max(float(z[n]), 0.0), 1.0)
                 scales[block.priority] = s
                 self.p[block.scale_index] = s
+                level_x = z[:n].copy()
             else:
-                x = z[:n].copy()
+                x = level_x = z[:n].copy()
                 if block.kind == LEVEL and block.m_soft:
                     self._freeze_soft_rows(state, z[n:])
-            levels.append(LevelResult(block.label, result.status, z[:n].copy(), rank,
+            levels.append(LevelResult(block.label, result.status, level_x, rank,
                                       result.iterations))
         return Solution(x, status, levels, self.compiled.variables, scales, timings, message)
 
