@@ -38,7 +38,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from wbc.errors import ShapeError, UnknownNameError, WbcError
+from wbc.controller import check_frame
+from wbc.errors import ShapeError, WbcError
 from wbc.terms import Cost, Task
 
 # Below these angles [rad] the closed forms are replaced by their Taylor series.
@@ -230,22 +231,6 @@ def _check_gain(gain, what: str) -> float:
     if not np.isfinite(gain) or gain < 0:
         raise WbcError(f"{what}: gain must be a finite number >= 0, got {gain!r}")
     return gain
-
-
-def check_frame(robot, frame: str, what: str) -> None:
-    """Raise :class:`~wbc.UnknownNameError` if ``robot`` knows its frames (``has_frame`` or
-    ``frame_names``) and ``frame`` is not one of them."""
-    known = getattr(robot, "frame_names", None)
-    has_frame = getattr(robot, "has_frame", None)
-    if has_frame is not None:
-        ok = has_frame(frame)
-    elif known is not None:
-        ok = frame in known
-    else:
-        return
-    if not ok:
-        raise UnknownNameError(f"{what}: unknown frame {frame!r}"
-                               + (f"; frames are {sorted(known)}" if known else ""))
 
 
 def velocity_block(stack, block: str | None, nv: int, what: str) -> ca.SX:

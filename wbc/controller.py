@@ -75,6 +75,22 @@ FALLBACKS = ("hold", "last", "raise")
 _FRAME_QUANTITY = re.compile(r"^(pose|J|Jdot_v)\[(.+)\]$")
 
 
+def check_frame(robot, frame: str, what: str) -> None:
+    """Raise :class:`~wbc.UnknownNameError` if ``robot`` knows its frames (``has_frame`` or
+    ``frame_names``) and ``frame`` is not one of them."""
+    known = getattr(robot, "frame_names", None)
+    has_frame = getattr(robot, "has_frame", None)
+    if has_frame is not None:
+        ok = has_frame(frame)
+    elif known is not None:
+        ok = frame in known
+    else:
+        return
+    if not ok:
+        raise UnknownNameError(f"{what}: unknown frame {frame!r}"
+                               + (f"; frames are {sorted(known)}" if known else ""))
+
+
 class Controller:
     """A stack compiled for a robot, solved every control tick.
 
@@ -168,7 +184,7 @@ class Controller:
                 if match is None:
                     continue
                 kind, frame = match.groups()
-                self._check_frame(frame, name)
+                check_frame(self.robot, frame, f"parameter {name!r}")
                 view = ws.view(name)
                 if kind == "pose":
                     expected = (4, 4)
@@ -187,20 +203,6 @@ class Controller:
                                  f"but the robot gives {expected}")
             self.model_parameters.append(name)
         self._zero_v = np.zeros(self.nv)
-
-    def _check_frame(self, frame: str, name: str) -> None:
-        robot = self.robot
-        known = getattr(robot, "frame_names", None)
-        has_frame = getattr(robot, "has_frame", None)
-        if has_frame is not None:
-            ok = has_frame(frame)
-        elif known is not None:
-            ok = frame in known
-        else:
-            return
-        if not ok:
-            raise UnknownNameError(f"parameter {name!r}: the robot has no frame {frame!r}"
-                                   + (f"; frames are {sorted(known)}" if known else ""))
 
     @property
     def reference_names(self) -> list[str]:
