@@ -51,14 +51,9 @@ class DifferentialDriveBase(PlanarBase):
     ) -> None:
         if separation <= 0.0 or radius <= 0.0:
             raise ValueError(f"separation ({separation}) and radius ({radius}) must be positive")
-        self.name = name
         self.separation = float(separation)
         self.radius = float(radius)
-        self.mass = float(mass)
-        self.com = np.array(com, dtype=float)
-        self.inertia = np.array(inertia, dtype=float)
-        self.v_max = np.array(v_max, dtype=float)
-        self.a_max = np.array(a_max, dtype=float)
+        super().__init__(name, mass, com, inertia, v_max, a_max)
         half = 0.5 * self.separation
         # wheel rates = jacobian @ (v, ω)
         self.jacobian = np.array([[1.0, -half], [1.0, half]]) / self.radius

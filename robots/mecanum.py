@@ -59,15 +59,10 @@ class MecanumBase(PlanarBase):
     ) -> None:
         if min(radius, half_wheelbase, half_track) <= 0.0:
             raise ValueError("radius, half_wheelbase and half_track must be positive")
-        self.name = name
         self.radius = float(radius)
         self.half_wheelbase = float(half_wheelbase)
         self.half_track = float(half_track)
-        self.mass = float(mass)
-        self.com = np.array(com, dtype=float)
-        self.inertia = np.array(inertia, dtype=float)
-        self.v_max = np.array(v_max, dtype=float)
-        self.a_max = np.array(a_max, dtype=float)
+        super().__init__(name, mass, com, inertia, v_max, a_max)
         k = self.half_wheelbase + self.half_track
         self.jacobian = (
             np.array([[1.0, -1.0, -k], [1.0, 1.0, k], [1.0, 1.0, -k], [1.0, -1.0, k]]) / self.radius

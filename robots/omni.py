@@ -61,14 +61,9 @@ class OmniBase(PlanarBase):
             raise ValueError(f"an omni base needs at least 3 wheel angles, got {self.angles}")
         if distance <= 0.0 or radius <= 0.0:
             raise ValueError(f"distance ({distance}) and radius ({radius}) must be positive")
-        self.name = name
         self.distance = float(distance)
         self.radius = float(radius)
-        self.mass = float(mass)
-        self.com = np.array(com, dtype=float)
-        self.inertia = np.array(inertia, dtype=float)
-        self.v_max = np.array(v_max, dtype=float)
-        self.a_max = np.array(a_max, dtype=float)
+        super().__init__(name, mass, com, inertia, v_max, a_max)
         s, c = np.sin(self.angles), np.cos(self.angles)
         self.jacobian = np.column_stack([-s, c, np.full_like(s, self.distance)]) / self.radius
         self._jacobian_pinv = np.linalg.pinv(self.jacobian)

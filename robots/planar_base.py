@@ -77,6 +77,15 @@ class PlanarBase(ABC):
     v_max: np.ndarray
     a_max: np.ndarray
 
+    def __init__(self, name: str, mass: float, com, inertia, v_max, a_max) -> None:
+        """Store the physical data every base has (see the class attributes for units)."""
+        self.name = name
+        self.mass = float(mass)
+        self.com = np.array(com, dtype=float)
+        self.inertia = np.array(inertia, dtype=float)
+        self.v_max = np.array(v_max, dtype=float)
+        self.a_max = np.array(a_max, dtype=float)
+
     @property
     def nv(self) -> int:
         """Number of velocity coordinates of the base (3 holonomic, 2 differential drive)."""

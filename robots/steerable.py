@@ -87,15 +87,10 @@ class SteerableBase(PlanarBase):
             raise ShapeError(f"hips must have shape (N, 2) with N >= 2, got {hips.shape}")
         if offset <= 0.0 or radius <= 0.0:
             raise ValueError(f"offset ({offset}) and radius ({radius}) must be positive")
-        self.name = name
         self.hips = hips
         self.offset = float(offset)
         self.radius = float(radius)
-        self.mass = float(mass)
-        self.com = np.array(com, dtype=float)
-        self.inertia = np.array(inertia, dtype=float)
-        self.v_max = np.array(v_max, dtype=float)
-        self.a_max = np.array(a_max, dtype=float)
+        super().__init__(name, mass, com, inertia, v_max, a_max)
 
     @property
     def n_wheels(self) -> int:
