@@ -1,0 +1,146 @@
+"""Machinery shared by every QP backend of :mod:`wbc.solvers`.
+
+A backend subclasses :class:`BackendBase` and implements ``_setup``, ``_update`` and ``_solve``;
+the base class checks shapes, resolves tolerance profiles, and guarantees the contract of
+:mod:`wbc.qp` on the way out (a failed or non-finite solve becomes a status with ``x = 0``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import io
+import math
+from types import ModuleType
+from typing import ClassVar
+
+import numpy as np
+
+from wbc.errors import BackendUnavailableError, ShapeError, UnknownNameError, WbcError
+from wbc.qp import QPResult, Status
+
+
+@contextlib.contextmanager
+def silenced():
+    """Swallow what solvers print through Python's ``sys.stdout``/``sys.stderr`` (the qpOASES
+    banner that CasADi forwards, OSQP's polishing notes, CasADi's plugin-loading warnings)."""
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        yield
+
+
+def import_solver(module: str, backend: str) -> ModuleType:
+    """Import a solver package, or raise :class:`BackendUnavailableError` naming the backend."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise BackendUnavailableError(
+            f"QP backend {backend!r} needs the Python package {module!r}, which is not "
+            f"importable: {exc}"
+        ) from exc
+
+
+def resolve_profile(
+    backend: str, profiles: dict[str, dict], profile: str, overrides: dict
+) -> dict:
+    """Options of ``profile`` for ``backend``, updated with ``overrides`` (which win)."""
+    if profile not in profiles:
+        raise UnknownNameError(
+            f"unknown tolerance profile {profile!r} for QP backend {backend!r}; "
+            f"known profiles: {', '.join(sorted(profiles))}"
+        )
+    return {**profiles[profile], **overrides}
+
+
+def check_option_names(backend: str, options: dict, known) -> None:
+    """Raise :class:`UnknownNameError` if ``options`` has a name outside ``known``."""
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise UnknownNameError(
+            f"QP backend {backend!r}: unknown options {unknown}; known: {', '.join(sorted(known))}"
+        )
+
+
+def check_problem(H, g, A, lA, uA, lb, ub) -> tuple[int, int]:
+    """Shapes ``(n, m)`` of a QP in the form of :mod:`wbc.qp`, or :class:`ShapeError`."""
+    n = np.shape(g)[0] if np.ndim(g) == 1 else -1
+    if n < 0 or np.shape(H) != (n, n):
+        raise ShapeError(f"QP: H must be (n, n) and g (n,), got H {np.shape(H)}, g {np.shape(g)}")
+    if np.ndim(A) != 2 or np.shape(A)[1] != n:
+        raise ShapeError(f"QP: A must be (m, {n}), got {np.shape(A)}")
+    m = np.shape(A)[0]
+    for label, vector, size in (("lA", lA, m), ("uA", uA, m), ("lb", lb, n), ("ub", ub, n)):
+        if np.shape(vector) != (size,):
+            raise ShapeError(f"QP: {label} must be ({size},), got {np.shape(vector)}")
+    return n, m
+
+
+def failure(n: int, m: int, status: Status, message: str, iterations: int = -1) -> QPResult:
+    """Result of a failed solve: zeros everywhere, the status and the solver's words."""
+    return QPResult(
+        x=np.zeros(n), status=status, y=np.zeros(m), z=np.zeros(n),
+        iterations=iterations, message=message,
+    )
+
+
+class BackendBase:
+    """Common part of the persistent QP backends (see :class:`wbc.qp.Backend`).
+
+    Args:
+        profile: name of a tolerance profile of the backend (``"default"``, ``"tight"``).
+        **options: solver settings that override the profile's.
+
+    Subclasses define ``name``, ``PROFILES`` (profile name -> settings dict) and the three
+    hooks. Data given to the hooks have been shape-checked; the hooks must copy what they keep.
+    """
+
+    name: str = "base"
+    PROFILES: ClassVar[dict[str, dict]] = {"default": {}, "tight": {}}
+
+    def __init__(self, profile: str = "default", **options):
+        self.profile = profile
+        self.options = resolve_profile(self.name, self.PROFILES, profile, options)
+        self.n: int | None = None
+        self.m: int | None = None
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(name={self.name!r}, profile={self.profile!r})"
+
+    def setup(self, H, g, A, lA, uA, lb, ub) -> None:
+        """Fix the structure (``n = H.shape[0]``, ``m = A.shape[0]``) and load the first data."""
+        self.n, self.m = check_problem(H, g, A, lA, uA, lb, ub)
+        self._setup(H, g, A, lA, uA, lb, ub)
+
+    def update(self, H, g, A, lA, uA, lb, ub) -> None:
+        """Load new data of the shapes given to :meth:`setup` (no re-setup)."""
+        if self.n is None:
+            raise WbcError(f"QP backend {self.name!r}: update() called before setup()")
+        n, m = self.n, self.m
+        if H.shape != (n, n) or A.shape != (m, n) or g.shape != (n,):
+            raise ShapeError(
+                f"QP backend {self.name!r} was set up for n={n}, m={m}; got H {H.shape}, "
+                f"g {g.shape}, A {A.shape}"
+            )
+        if lA.shape != (m,) or uA.shape != (m,) or lb.shape != (n,) or ub.shape != (n,):
+            raise ShapeError(
+                f"QP backend {self.name!r} was set up for n={n}, m={m}; got lA {lA.shape}, "
+                f"uA {uA.shape}, lb {lb.shape}, ub {ub.shape}"
+            )
+        self._update(H, g, A, lA, uA, lb, ub)
+
+    def solve(self, warm_start: np.ndarray | None = None) -> QPResult:
+        """Solve the loaded problem, optionally warm-started from a primal guess of shape (n,)."""
+        if self.n is None:
+            raise WbcError(f"QP backend {self.name!r}: solve() called before setup()")
+        result = self._solve(warm_start)
+        if result.status is Status.SOLVED and not math.isfinite(result.x @ result.x):  # NaN, inf
+            return failure(self.n, self.m, Status.NUMERICAL, "non-finite solution")
+        return result
+
+    def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
+        raise NotImplementedError
+
+    def _update(self, H, g, A, lA, uA, lb, ub) -> None:
+        raise NotImplementedError
+
+    def _solve(self, warm_start: np.ndarray | None) -> QPResult:
+        raise NotImplementedError

@@ -1,0 +1,134 @@
+"""DAQP (dual active set, dense) behind the :class:`wbc.qp.Backend` contract.
+
+One ``daqp.Model`` per backend: ``setup`` allocates its workspace, every tick ``update`` refreshes
+the data (a new Cholesky factor of ``H``, the constraint transform) without a new setup, and the
+solve restarts from the previous active set — that is DAQP's warm start; the primal guess passed
+to :meth:`solve` is not used. DAQP takes simple bounds first, then the rows of ``A``, with
+``blower <= . <= bupper`` and ``±inf`` for no bound; equalities (``l == u``) are flagged with
+``sense = 5`` (active and immutable). When that flag pattern changes, or after a failed solve,
+the sense vector is passed again, which resets the active set (a cold start).
+
+Semidefinite Hessians: ``eps_prox`` (negative = automatic, DAQP 0.11's default ``-1e-6``) turns
+on DAQP's own proximal-point iterations when ``H`` is singular, so LPs and rank-deficient ``H``
+work. Their stopping tolerance ``eta_prox`` matters: with DAQP's default the multipliers of an
+LP are only good to ≈1e-4 (``x`` is exact); with ``1e-12`` DAQP reports a well-posed singular
+level of a cascade "unbounded"; ``tight`` uses ``1e-10``.
+
+Multipliers: ``info["lam"]`` = bounds then rows, with the sign convention of :mod:`wbc.qp`.
+Profiles: ``default`` is DAQP's defaults; ``tight`` adds ``primal_tol = 1e-10`` and
+``eta_prox = 1e-10``, and reaches ≈1e-14 on positive-definite QPs, ≈1e-9 with a singular Hessian,
+≈1e-12 on LPs (tests).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wbc.qp import QPResult, Status
+
+from .base import BackendBase, check_option_names, failure, import_solver
+
+_EQUALITY = 5  # DAQP sense flags: ACTIVE (1) | IMMUTABLE (4)
+_EXIT = {
+    1: (Status.SOLVED, "optimal"),
+    2: (Status.SOLVED, "soft optimal"),
+    -1: (Status.INFEASIBLE, "infeasible"),
+    -2: (Status.NUMERICAL, "cycling detected"),
+    -3: (Status.NUMERICAL, "unbounded"),
+    -4: (Status.MAX_ITER, "iteration limit reached"),
+    -5: (Status.NUMERICAL, "nonconvex problem"),
+    -6: (Status.NUMERICAL, "overdetermined initial active set"),
+}
+
+
+def _exit(flag: int) -> tuple[Status, str]:
+    return _EXIT.get(flag, (Status.NUMERICAL, f"exit flag {flag}"))
+
+
+class DaqpBackend(BackendBase):
+    """DAQP, kept alive between ticks. See the module docstring."""
+
+    name = "daqp"
+    PROFILES = {
+        "default": {},
+        "tight": {"primal_tol": 1e-10, "eta_prox": 1e-10},
+    }
+
+    def __init__(self, profile: str = "default", **options):
+        super().__init__(profile, **options)
+        self._daqp = import_solver("daqp", self.name)
+        check_option_names(self.name, self.options, self._daqp.Model().settings)
+
+    def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
+        n, m = self.n, self.m
+        self._H = np.empty((n, n))
+        self._f = np.empty(n)
+        self._A = np.empty((m, n))
+        self._A_update = self._A if m else None  # DAQP's update indexes A[0, 0]
+        self._upper = np.empty(n + m)
+        self._lower = np.empty(n + m)
+        self._equal = np.empty(n + m, dtype=bool)
+        self._load(H, g, A, lA, uA, lb, ub)
+        self._build()
+
+    def _build(self) -> None:
+        """A new model on the loaded data (``self._model`` is None if DAQP refuses it)."""
+        self._pattern = b""
+        self._read_equalities()
+        self._model = self._daqp.Model()
+        self._model.settings = self.options  # kept by setup
+        self._flag, _ = self._model.setup(
+            self._H, self._f, self._A, self._upper, self._lower, self._sense
+        )
+        if self._flag < 0:
+            self._model = None
+        self._cold = False
+
+    def _load(self, H, g, A, lA, uA, lb, ub) -> None:
+        n = self.n
+        self._H[...] = H
+        self._f[...] = g
+        self._A[...] = A
+        self._upper[:n] = ub
+        self._upper[n:] = uA
+        self._lower[:n] = lb
+        self._lower[n:] = lA
+
+    def _read_equalities(self) -> bool:
+        """Flag the equalities (``l == u``) of the loaded data; whether they changed."""
+        np.equal(self._lower, self._upper, out=self._equal)
+        pattern = self._equal.tobytes()
+        if pattern == self._pattern:
+            return False
+        self._pattern = pattern
+        self._sense = np.where(self._equal, _EQUALITY, 0).astype(np.intc)
+        return True
+
+    def _update(self, H, g, A, lA, uA, lb, ub) -> None:
+        self._load(H, g, A, lA, uA, lb, ub)
+        if self._model is None:
+            self._build()
+            return
+        if self._read_equalities() or self._cold:  # passing the flags resets the active set
+            self._flag = self._model.update(
+                self._H, self._f, self._A_update, self._upper, self._lower, self._sense
+            )
+            self._cold = False
+        else:
+            self._flag = self._model.update(
+                self._H, self._f, self._A_update, self._upper, self._lower
+            )
+
+    def _solve(self, warm_start) -> QPResult:
+        n, m = self.n, self.m
+        if self._model is None or self._flag < 0:
+            self._cold = True
+            status, words = _exit(self._flag)
+            return failure(n, m, status, f"daqp: setup/update failed: {words}")
+        x, _, flag, info = self._model.solve()
+        status, words = _exit(flag)
+        if status is not Status.SOLVED:
+            self._cold = True
+            return failure(n, m, status, f"daqp: {words}", info["iterations"])
+        lam = info["lam"]
+        return QPResult(x=x, status=status, y=lam[n:], z=lam[:n], iterations=info["iterations"])
