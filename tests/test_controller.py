@@ -12,7 +12,7 @@ from wbc.robots.fixed_base import load_panda
 from wbc.tasks import ConfigurationLimit, FrameTask, PostureTask, VelocityLimit
 
 DT = 0.01
-BACKEND = "quadprog"
+BACKEND = "daqp"
 Q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
 
 

@@ -15,11 +15,11 @@ KEYS = {"wbc_median_s", "pink_median_s", "ratio", "command_diff_max", "agree",
 
 def test_vs_pink_writes_its_json(tmp_path, capsys):
     pytest.importorskip("pink")
-    code = vs_pink.main(["--ticks", "30", "--backends", "quadprog", "--no-jit",
+    code = vs_pink.main(["--ticks", "30", "--backends", "daqp", "quadprog", "--no-jit",
                          "--out", str(tmp_path)])
     assert code == 0
     report = json.loads((tmp_path / "vs_pink.json").read_text())
-    assert set(report["backends"]) == {"quadprog"}
+    assert set(report["backends"]) == {"daqp", "quadprog"}
     for result in report["backends"].values():
         assert KEYS <= set(result)
         assert result["wbc_median_s"] > 0 and result["pink_median_s"] > 0
@@ -27,7 +27,7 @@ def test_vs_pink_writes_its_json(tmp_path, capsys):
         assert result["command_diff_max"] < 1e-6  # exact solvers: the same QP
     assert {"platform", "cpu", "python", "packages"} <= set(report["machine"])
     out = capsys.readouterr().out
-    assert "| quadprog |" in out and "wbc / pink" in out
+    assert "| daqp |" in out and "| quadprog |" in out and "wbc / pink" in out
 
 
 def test_vs_pink_skips_cleanly_without_pink(tmp_path, capsys, monkeypatch):
