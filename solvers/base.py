@@ -107,23 +107,19 @@ class BackendBase:
 
     def setup(self, H, g, A, lA, uA, lb, ub) -> None:
         """Fix the structure (``n = H.shape[0]``, ``m = A.shape[0]``) and load the first data."""
-        self.n, self.m = check_problem(H, g, A, lA, uA, lb, ub)
+        self.n, self.m = n, m = check_problem(H, g, A, lA, uA, lb, ub)
+        self._shapes = ((n, n), (n,), (m, n), (m,), (m,), (n,), (n,))
         self._setup(H, g, A, lA, uA, lb, ub)
 
     def update(self, H, g, A, lA, uA, lb, ub) -> None:
         """Load new data of the shapes given to :meth:`setup` (no re-setup)."""
         if self.n is None:
             raise WbcError(f"QP backend {self.name!r}: update() called before setup()")
-        n, m = self.n, self.m
-        if H.shape != (n, n) or A.shape != (m, n) or g.shape != (n,):
+        shapes = (H.shape, g.shape, A.shape, lA.shape, uA.shape, lb.shape, ub.shape)
+        if shapes != self._shapes:  # one comparison: this runs every tick
             raise ShapeError(
-                f"QP backend {self.name!r} was set up for n={n}, m={m}; got H {H.shape}, "
-                f"g {g.shape}, A {A.shape}"
-            )
-        if lA.shape != (m,) or uA.shape != (m,) or lb.shape != (n,) or ub.shape != (n,):
-            raise ShapeError(
-                f"QP backend {self.name!r} was set up for n={n}, m={m}; got lA {lA.shape}, "
-                f"uA {uA.shape}, lb {lb.shape}, ub {ub.shape}"
+                f"QP backend {self.name!r} was set up for (H, g, A, lA, uA, lb, ub) shapes "
+                f"{self._shapes}; got {shapes}"
             )
         self._update(H, g, A, lA, uA, lb, ub)
 

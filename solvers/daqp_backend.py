@@ -64,7 +64,6 @@ class DaqpBackend(BackendBase):
         self._H = np.empty((n, n))
         self._f = np.empty(n)
         self._A = np.empty((m, n))
-        self._A_update = self._A if m else None  # DAQP's update indexes A[0, 0]
         self._upper = np.empty(n + m)
         self._lower = np.empty(n + m)
         self._equal = np.empty(n + m, dtype=bool)
@@ -85,10 +84,13 @@ class DaqpBackend(BackendBase):
         self._cold = False
 
     def _load(self, H, g, A, lA, uA, lb, ub) -> None:
-        n = self.n
         self._H[...] = H
         self._f[...] = g
         self._A[...] = A
+        self._load_sides(lA, uA, lb, ub)
+
+    def _load_sides(self, lA, uA, lb, ub) -> None:
+        n = self.n  # DAQP: bounds first, then the rows
         self._upper[:n] = ub
         self._upper[n:] = uA
         self._lower[:n] = lb
@@ -105,19 +107,23 @@ class DaqpBackend(BackendBase):
         return True
 
     def _update(self, H, g, A, lA, uA, lb, ub) -> None:
-        self._load(H, g, A, lA, uA, lb, ub)
         if self._model is None:
+            self._load(H, g, A, lA, uA, lb, ub)
             self._build()
             return
+        # DAQP copies what update() is given, so the caller's H, g, A go in as they are (H is
+        # symmetric: the transpose of a column-major H is the same matrix, row-major); only
+        # the bounds-then-rows sides need assembling.
+        self._load_sides(lA, uA, lb, ub)
+        H = H if H.flags.c_contiguous else (H.T if H.flags.f_contiguous
+                                             else np.ascontiguousarray(H))
+        A = np.ascontiguousarray(A) if self.m else None
+        g = np.ascontiguousarray(g)
         if self._read_equalities() or self._cold:  # passing the flags resets the active set
-            self._flag = self._model.update(
-                self._H, self._f, self._A_update, self._upper, self._lower, self._sense
-            )
+            self._flag = self._model.update(H, g, A, self._upper, self._lower, self._sense)
             self._cold = False
         else:
-            self._flag = self._model.update(
-                self._H, self._f, self._A_update, self._upper, self._lower
-            )
+            self._flag = self._model.update(H, g, A, self._upper, self._lower)
 
     def _solve(self, warm_start) -> QPResult:
         n, m = self.n, self.m
