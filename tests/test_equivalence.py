@@ -32,6 +32,8 @@ SCALING_UNRELIABLE = {
     "osqp": "ADMM stalls on degenerate vertex LPs (max_iter / solved inaccurate)",
     "casadi:osqp": "ADMM stalls on degenerate vertex LPs (max_iter / solved inaccurate)",
     "proxqp": "ProxQP 0.8 reports primal infeasibility on some feasible vertex LPs",
+    "quadprog": "quadprog needs H > 0: the adapter's proximal iterations on the singular "
+                "level after a scaling LP can stall at a degenerate vertex (max_iter)",
 }
 
 
