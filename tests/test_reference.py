@@ -12,10 +12,10 @@ import scipy.linalg
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import linprog
-from wbc.solvers import reference as R
 
 from wbc.errors import BoundsOrderError, NonFiniteError, ShapeError, WbcError
 from wbc.qp import Status
+from wbc.solvers import reference as R
 
 HYP = settings(derandomize=True, max_examples=60, deadline=None)
 seeds = st.integers(min_value=0, max_value=2**32 - 1)
