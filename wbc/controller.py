@@ -57,14 +57,13 @@ from __future__ import annotations
 import dataclasses
 import re
 import time
-import warnings
 from functools import partial
 from math import isfinite
 
 import casadi as ca
 import numpy as np
 
-from .compiler import CompiledStack
+from .compiler import CompiledStack, jit_compiled
 from .errors import InfeasibleError, NonFiniteError, ShapeError, UnknownNameError, WbcError
 from .qp import Status
 from .solution import Solution
@@ -333,28 +332,6 @@ class Controller:
     def __repr__(self) -> str:
         return (f"Controller(robot={self.robot!r}, backend={self.workspace.backend_name!r}, "
                 f"dt={self.dt}, fallback={self.fallback!r})")
-
-
-def jit_compiled(compiled: CompiledStack, flags: tuple[str, ...] = ("-O2",)) -> CompiledStack:
-    """A copy of ``compiled`` whose level functions are JIT-compiled C (same inputs/outputs).
-
-    The compiled stack is immutable: this returns a new one (``dataclasses.replace``). If no C
-    compiler works, warns and returns ``compiled`` unchanged.
-    """
-    blocks = []
-    try:
-        for block in compiled.blocks:
-            fn = block.function
-            jitted = ca.Function(f"{fn.name()}_jit", fn.sx_in(), fn.call(fn.sx_in()),
-                                 fn.name_in(), fn.name_out(),
-                                 {"jit": True, "compiler": "shell",
-                                  "jit_options": {"flags": list(flags), "verbose": False}})
-            blocks.append(dataclasses.replace(block, function=jitted))
-    except RuntimeError as err:
-        warnings.warn(f"JIT compilation failed, using CasADi's virtual machine: {err}",
-                      RuntimeWarning, stacklevel=2)
-        return compiled
-    return dataclasses.replace(compiled, blocks=tuple(blocks))
 
 
 def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:

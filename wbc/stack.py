@@ -237,11 +237,19 @@ class Stack:
             self._workspaces.clear()
         return self._compiled
 
-    def workspace(self, backend="daqp", profile: str = "default", **options):
-        """A new mutable :class:`~wbc.workspace.Workspace` (buffers + live solvers)."""
+    def workspace(self, backend="daqp", profile: str = "default", jit: bool = False,
+                  **options):
+        """A new mutable :class:`~wbc.workspace.Workspace` (buffers + live solvers).
+
+        Args:
+            jit: evaluate the level functions as JIT-compiled C instead of CasADi's virtual
+                machine (needs a C compiler; ~0.5 s per level once, then several times faster).
+        """
+        from .compiler import jit_compiled
         from .workspace import Workspace
 
-        return Workspace(self.compile(), backend, profile, **options)
+        compiled = jit_compiled(self.compile()) if jit else self.compile()
+        return Workspace(compiled, backend, profile, **options)
 
     def solve(self, backend="daqp", profile: str = "default",
               params: Mapping[str, np.ndarray] | None = None, **values):
