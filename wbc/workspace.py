@@ -16,6 +16,7 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from scipy.linalg import get_lapack_funcs
 
 from .compiler import LEVEL, SCALING_LP, CompiledStack, QPBlock
 from .errors import UnknownNameError, WbcError
@@ -26,6 +27,16 @@ from .stack import Parameter, _checked_value
 BackendSpec = str | Callable[[], Backend]
 
 _ABS_RANK_TOL = 1e-12
+_GESDD = get_lapack_funcs("gesdd", dtype=np.float64)
+
+
+def _svd(M: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Thin SVD ``(U, s, Vt)`` by calling LAPACK directly: for the few-row matrices of a tick
+    numpy's wrapper costs more than the factorisation."""
+    U, s, Vt, info = _GESDD(M, compute_uv=1, full_matrices=0)
+    if info != 0:  # did not converge: let numpy raise or retry its way
+        return np.linalg.svd(M, full_matrices=False)
+    return U, s, Vt
 
 
 def make_backend(spec: BackendSpec, profile: str, **options) -> Backend:
@@ -65,6 +76,12 @@ class _BlockState:
         for i, out in enumerate(outputs):
             if out.size:
                 self.buffer.set_res(i, memoryview(out))
+        # Views of the rows the cascade appends each tick (fixed places, made once).
+        soft = slice(top, top + block.n_frozen_soft)
+        eq = slice(soft.stop, soft.stop + block.m_frozen_eq)
+        self.soft_rows, self.soft_lA, self.soft_uA = self.A[soft, :n], self.lA[soft], self.uA[soft]
+        self.eq_rows, self.eq_lA, self.eq_uA = self.A[eq, :n], self.lA[eq], self.uA[eq]
+        self.lb_x, self.ub_x = self.lb[:n], self.ub[:n]
         self.backend = backend
         self.ready = False  # backend.setup done
         self.warm: np.ndarray | None = None
@@ -206,14 +223,11 @@ class Workspace:
     def _append_frozen_rows(self, state: _BlockState, x: np.ndarray) -> int:
         """Write earlier levels' frozen rows below the block's own rows; return the rank of the
         frozen cost rows."""
-        block, n = state.block, self.compiled.n
-        row = block.m_top
+        block = state.block
         if block.n_frozen_soft:
-            end = row + block.n_frozen_soft
-            state.A[row:end, :n] = self._S[:block.n_frozen_soft]
-            state.lA[row:end] = self._lS[:block.n_frozen_soft]
-            state.uA[row:end] = self._uS[:block.n_frozen_soft]
-            row = end
+            state.soft_rows[...] = self._S[:block.n_frozen_soft]
+            state.soft_lA[...] = self._lS[:block.n_frozen_soft]
+            state.soft_uA[...] = self._uS[:block.n_frozen_soft]
         if not block.n_frozen_cost:
             return 0
         # Keep A_j x = A_j x_j* for every earlier level j, as an orthonormal basis of the
@@ -221,21 +235,24 @@ class Workspace:
         # their bounds (lb == ub, e.g. pinned by a zero mobility) are left out of the rows, or
         # the rows would repeat those bounds.
         E = self._E[:block.n_frozen_cost]
-        fixed = state.lb[:n] == state.ub[:n]
+        fixed = state.lb_x == state.ub_x
         if fixed.any():
             E = E * ~fixed
-        _, sv, Vt = np.linalg.svd(E, full_matrices=False)
+        _, sv, Vt = _svd(E)
         rank = int(np.count_nonzero(sv > max(_ABS_RANK_TOL, self.compiled.rank_tol * sv[0])))
-        end = row + block.m_frozen_eq
-        rows = state.A[row:end, :n]
+        rows, lA, uA = state.eq_rows, state.eq_lA, state.eq_uA
         rows[:rank] = Vt[:rank]
         rows[rank:] = 0.0
         rhs = Vt[:rank] @ x
-        band = self.compiled.freeze_tol * (1.0 + np.abs(rhs))
-        state.lA[row:row + rank] = rhs - band
-        state.uA[row:row + rank] = rhs + band
-        state.lA[row + rank:end] = -np.inf
-        state.uA[row + rank:end] = np.inf
+        if self.compiled.freeze_tol:
+            band = self.compiled.freeze_tol * (1.0 + np.abs(rhs))
+            lA[:rank] = rhs - band
+            uA[:rank] = rhs + band
+        else:
+            lA[:rank] = rhs
+            uA[:rank] = rhs
+        lA[rank:] = -np.inf
+        uA[rank:] = np.inf
         return rank
 
     def _compress_task_rows(self, state: _BlockState) -> bool:
@@ -245,7 +262,7 @@ class Workspace:
         block = state.block
         rows = slice(block.m_hard, block.m_hard + block.m_task)
         M, rhs = state.A[rows], state.lA[rows]
-        U, sv, Vt = np.linalg.svd(M, full_matrices=False)
+        U, sv, Vt = _svd(M)
         rank = int(np.count_nonzero(sv > max(_ABS_RANK_TOL, self.compiled.rank_tol * sv[0])))
         c = U[:, :rank].T @ rhs
         if np.linalg.norm(rhs - U[:, :rank] @ c) > 1e-9 * max(1.0, np.linalg.norm(rhs)):
