@@ -45,7 +45,7 @@ class Status(enum.Enum):
         return self is Status.SOLVED
 
 
-@dataclass
+@dataclass(slots=True)
 class QPResult:
     """Result of one backend solve.
 

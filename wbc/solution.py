@@ -10,7 +10,7 @@ from .qp import Status
 from .variables import Variables
 
 
-@dataclass
+@dataclass(slots=True)
 class Timings:
     """Wall-clock split of one tick [s].
 
@@ -29,7 +29,7 @@ class Timings:
         return self.model + self.assembly + self.solve
 
 
-@dataclass
+@dataclass(slots=True)
 class LevelResult:
     """Outcome of one QP of the cascade.
 
@@ -50,7 +50,7 @@ class LevelResult:
     message: str = ""
 
 
-@dataclass
+@dataclass(slots=True)
 class Solution:
     """Result of ``stack.solve`` / ``workspace.solve``.
 
@@ -63,6 +63,8 @@ class Solution:
         scales: ``priority -> s`` for every scaling level.
         timings: :class:`Timings` [s].
         message: empty on success, else what failed and where.
+        fallback: set by :class:`~wbc.Controller`: ``None`` when the QP was solved, else the
+            fallback policy that produced the command.
     """
 
     x: np.ndarray
@@ -72,6 +74,7 @@ class Solution:
     scales: dict[int, float] = field(default_factory=dict)
     timings: Timings = field(default_factory=Timings)
     message: str = ""
+    fallback: str | None = None
 
     @property
     def ok(self) -> bool:
