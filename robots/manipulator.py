@@ -314,27 +314,22 @@ class MobileManipulator:
         )
 
     def _check_q(self, q) -> np.ndarray:
-        q = np.asarray(q, dtype=float)
-        if q.shape != (self.nq,):
-            raise ShapeError(
-                f"robot {self.name!r}: configuration q must have shape ({self.nq},) "
-                f"[x, y, theta, {self.n_arm} arm joints], got {q.shape}"
-            )
-        # one dot product is cheaper than isfinite().all(); exact check only when it fails
-        if not math.isfinite(q @ q) and not np.all(np.isfinite(q)):
-            raise NonFiniteError(f"robot {self.name!r}: configuration q holds NaN or inf: {q}")
-        return q
+        return self._check_state(q, self.nq, "configuration q",
+                                 f"x, y, theta, {self.n_arm} arm joints")
 
     def _check_v(self, v) -> np.ndarray:
-        v = np.asarray(v, dtype=float)
-        if v.shape != (self.nv,):
-            raise ShapeError(
-                f"robot {self.name!r}: velocity v must have shape ({self.nv},) "
-                f"[{', '.join(self.base.velocity_names)}, {self.n_arm} arm joints], got {v.shape}"
-            )
-        if not math.isfinite(v @ v) and not np.all(np.isfinite(v)):
-            raise NonFiniteError(f"robot {self.name!r}: velocity v holds NaN or inf: {v}")
-        return v
+        return self._check_state(v, self.nv, "velocity v",
+                                 f"{', '.join(self.base.velocity_names)}, {self.n_arm} arm joints")
+
+    def _check_state(self, value, size: int, what: str, layout: str) -> np.ndarray:
+        value = np.asarray(value, dtype=float)
+        if value.shape != (size,):
+            raise ShapeError(f"robot {self.name!r}: {what} must have shape ({size},) "
+                             f"[{layout}], got {value.shape}")
+        # one dot product is cheaper than isfinite().all(); exact check only when it fails
+        if not math.isfinite(value @ value) and not np.all(np.isfinite(value)):
+            raise NonFiniteError(f"robot {self.name!r}: {what} holds NaN or inf: {value}")
+        return value
 
     @staticmethod
     def _check_reference(reference: str) -> None:
