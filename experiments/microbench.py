@@ -54,8 +54,8 @@ def tick_parameters(values: dict, k: int) -> dict:
 
 def _qp_of(ws: wbc.Workspace) -> tuple:
     """The numeric QP the first level of ``ws`` solved (for the cold qpsolvers call)."""
-    state = ws._blocks[0]
-    return tuple(a.copy() for a in state.qp())
+    _, qp, _ = ws.last_qps()[0]
+    return tuple(a.copy() for a in qp)
 
 
 def run(ticks: int = 1000, warmup: int = 50, backends: list[str] | None = None,

@@ -104,6 +104,11 @@ def _target(pose0: np.ndarray, t: float) -> np.ndarray:
     return T
 
 
+def _references(kind: str, T: np.ndarray) -> dict:
+    """The step() keywords of stack ``kind`` for end-effector target ``T``."""
+    return {"ee": T, "ee_pose": T} if kind == "three_levels" else {"ee": T}
+
+
 def reference_run(robot, kind: str, ticks: int, q0: np.ndarray | None = None) -> dict:
     """Closed loop with the reference backend from ``q0`` (default ``robot.neutral()``);
     returns the states, targets and commands."""
@@ -115,10 +120,7 @@ def reference_run(robot, kind: str, ticks: int, q0: np.ndarray | None = None) ->
     states, targets, commands = [], [], []
     for k in range(ticks):
         T = _target(pose0, k * DT)
-        refs = {"ee": T}
-        if kind == "three_levels":
-            refs["ee_pose"] = T
-        cmd = ctrl.step(q, v, **refs)
+        cmd = ctrl.step(q, v, **_references(kind, T))
         states.append((q.copy(), v.copy()))
         targets.append(T)
         commands.append(cmd.copy())
@@ -136,9 +138,7 @@ def replay(robot, kind: str, backend: str, run: dict, warmup: int) -> dict:
     samples = {"tick": [], "kinematics": [], "assembly": [], "solve": []}
     ok, diff = [], []
     for k, ((q, v), T) in enumerate(zip(run["states"], run["targets"], strict=True)):
-        refs = {"ee": T}
-        if kind == "three_levels":
-            refs["ee_pose"] = T
+        refs = _references(kind, T)
         t0 = time.perf_counter()
         cmd = ctrl.step(q, v, **refs)
         elapsed = time.perf_counter() - t0
@@ -238,6 +238,13 @@ def markdown(report: dict) -> str:
     return "\n".join(out) + "\n"
 
 
+def _save(plt, fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def plots(report: dict, out: Path) -> list[Path]:
     """Median tick per backend (one panel per robot, bars per stack) and the scaling curves."""
     import matplotlib
@@ -262,11 +269,7 @@ def plots(report: dict, out: Path) -> list[Path]:
             ax.set_ylabel("median tick [µs]")
             ax.set_title(name)
             ax.legend(fontsize=7)
-        fig.tight_layout()
-        path = out / "solver_timing.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save(plt, fig, out / "solver_timing.png"))
     if report["scaling"]:
         fig, ax = plt.subplots(figsize=(6, 4))
         for backend, per in report["scaling"].items():
@@ -278,11 +281,7 @@ def plots(report: dict, out: Path) -> list[Path]:
         ax.set_ylabel("median tick [µs]")
         ax.set_title("one_level stack on serial chains")
         ax.legend(fontsize=7)
-        fig.tight_layout()
-        path = out / "scaling.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save(plt, fig, out / "scaling.png"))
     return written
 
 
