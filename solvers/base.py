@@ -10,12 +10,12 @@ from __future__ import annotations
 import contextlib
 import importlib
 import io
-import math
 from types import ModuleType
 from typing import ClassVar
 
 import numpy as np
 
+from wbc.checks import all_finite
 from wbc.errors import BackendUnavailableError, ShapeError, UnknownNameError, WbcError
 from wbc.qp import QPResult, Status
 
@@ -128,7 +128,7 @@ class BackendBase:
         if self.n is None:
             raise WbcError(f"QP backend {self.name!r}: solve() called before setup()")
         result = self._solve(warm_start)
-        if result.status is Status.SOLVED and not math.isfinite(result.x @ result.x):  # NaN, inf
+        if result.status is Status.SOLVED and not all_finite(result.x):
             return failure(self.n, self.m, Status.NUMERICAL, "non-finite solution")
         return result
 

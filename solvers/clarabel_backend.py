@@ -115,5 +115,4 @@ class ClarabelBackend(BackendBase):
             return failure(n, m, status, f"clarabel: {words}", solution.iterations)
         multipliers = self._rows.multipliers(np.asarray(solution.z))
         return QPResult(x=np.asarray(solution.x), status=status, y=multipliers[:m],
-                        z=multipliers[m:], iterations=solution.iterations,
-                        info={"solver_status": words})
+                        z=multipliers[m:], iterations=solution.iterations)

@@ -39,6 +39,7 @@ _EXIT = {
     -5: (Status.NUMERICAL, "nonconvex problem"),
     -6: (Status.NUMERICAL, "overdetermined initial active set"),
 }
+_SOLVED_FLAGS = (1, 2)  # the flags _EXIT maps to SOLVED
 
 
 def _exit(flag: int) -> tuple[Status, str]:
@@ -64,15 +65,19 @@ class DaqpBackend(BackendBase):
         self._H = np.empty((n, n))
         self._f = np.empty(n)
         self._A = np.empty((m, n))
-        self._upper = np.empty(n + m)
+        self._upper = np.empty(n + m)  # DAQP's order: bounds first, then the rows
         self._lower = np.empty(n + m)
         self._equal = np.empty(n + m, dtype=bool)
-        self._load(H, g, A, lA, uA, lb, ub)
-        self._build()
+        self._pattern = b""  # the equality flags as bytes, to notice when they change
+        self._load_sides(lA, uA, lb, ub)
+        self._build(H, g, A)
 
-    def _build(self) -> None:
-        """A new model on the loaded data (``self._model`` is None if DAQP refuses it)."""
-        self._pattern = b""
+    def _build(self, H, g, A) -> None:
+        """A new model on copies of ``H, g, A`` and the loaded sides (``self._model`` is None
+        if DAQP refuses it)."""
+        self._H[...] = H
+        self._f[...] = g
+        self._A[...] = A
         self._read_equalities()
         self._model = self._daqp.Model()
         self._model.settings = self.options  # kept by setup
@@ -83,23 +88,17 @@ class DaqpBackend(BackendBase):
             self._model = None
         self._cold = False
 
-    def _load(self, H, g, A, lA, uA, lb, ub) -> None:
-        self._H[...] = H
-        self._f[...] = g
-        self._A[...] = A
-        self._load_sides(lA, uA, lb, ub)
-
     def _load_sides(self, lA, uA, lb, ub) -> None:
-        n = self.n  # DAQP: bounds first, then the rows
+        n = self.n
         self._upper[:n] = ub
-        self._upper[n:] = uA
         self._lower[:n] = lb
-        self._lower[n:] = lA
+        if self.m:
+            self._upper[n:] = uA
+            self._lower[n:] = lA
 
     def _read_equalities(self) -> bool:
-        """Flag the equalities (``l == u``) of the loaded data; whether they changed."""
-        np.equal(self._lower, self._upper, out=self._equal)
-        pattern = self._equal.tobytes()
+        """Flag the equalities (``l == u``) of the loaded sides; whether the flags changed."""
+        pattern = np.equal(self._lower, self._upper, out=self._equal).tobytes()
         if pattern == self._pattern:
             return False
         self._pattern = pattern
@@ -107,18 +106,13 @@ class DaqpBackend(BackendBase):
         return True
 
     def _update(self, H, g, A, lA, uA, lb, ub) -> None:
-        if self._model is None:
-            self._load(H, g, A, lA, uA, lb, ub)
-            self._build()
-            return
-        # DAQP copies what update() is given, so the caller's H, g, A go in as they are (H is
-        # symmetric: the transpose of a column-major H is the same matrix, row-major); only
-        # the bounds-then-rows sides need assembling.
         self._load_sides(lA, uA, lb, ub)
-        H = H if H.flags.c_contiguous else (H.T if H.flags.f_contiguous
-                                             else np.ascontiguousarray(H))
-        A = np.ascontiguousarray(A) if self.m else None
-        g = np.ascontiguousarray(g)
+        if self._model is None:
+            self._build(H, g, A)
+            return
+        # DAQP copies what update() is given (converting the memory order if needed), so H, g
+        # and A go in as they are.
+        A = A if self.m else None
         if self._read_equalities() or self._cold:  # passing the flags resets the active set
             self._flag = self._model.update(H, g, A, self._upper, self._lower, self._sense)
             self._cold = False
@@ -132,9 +126,9 @@ class DaqpBackend(BackendBase):
             status, words = _exit(self._flag)
             return failure(n, m, status, f"daqp: setup/update failed: {words}")
         x, _, flag, info = self._model.solve()
-        status, words = _exit(flag)
-        if status is not Status.SOLVED:
+        if flag not in _SOLVED_FLAGS:
             self._cold = True
+            status, words = _exit(flag)
             return failure(n, m, status, f"daqp: {words}", info["iterations"])
         lam = info["lam"]
-        return QPResult(x=x, status=status, y=lam[n:], z=lam[:n], iterations=info["iterations"])
+        return QPResult(x, Status.SOLVED, lam[n:], lam[:n], info["iterations"])

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from wbc.checks import check_bounds_order, check_finite
 from wbc.errors import ShapeError
-from wbc.terms import Cost, Inequality, Task, VariableBounds, check_bounds_order, check_finite
+from wbc.terms import Cost, Inequality, Task, VariableBounds
 
 
 def _matrix(value, what: str) -> np.ndarray:

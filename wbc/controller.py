@@ -58,11 +58,11 @@ import dataclasses
 import re
 import time
 from functools import partial
-from math import isfinite
 
 import casadi as ca
 import numpy as np
 
+from .checks import all_finite
 from .compiler import CompiledStack, jit_compiled
 from .errors import InfeasibleError, NonFiniteError, ShapeError, UnknownNameError, WbcError
 from .qp import Status
@@ -227,6 +227,8 @@ class Controller:
         if not np.isfinite(value) or value <= 0:
             raise WbcError(f"dt must be a finite number > 0, got {value!r}")
         self._dt_value = value
+        if self._dt is not None:
+            self._dt[0] = value
 
     # ------------------------------------------------------------------ references
     def _reference(self, key: str):
@@ -277,18 +279,16 @@ class Controller:
         q = np.asarray(q, dtype=float)
         if q.shape != (self.nq,):
             raise ShapeError(f"q must have shape ({self.nq},), got {q.shape}")
-        if not isfinite(q.dot(q)):
+        if not all_finite(q):
             raise NonFiniteError("q contains NaN or inf")
         if v is not None:
             v = np.asarray(v, dtype=float)
             if v.shape != (self.nv,):
                 raise ShapeError(f"v must have shape ({self.nv},), got {v.shape}")
-            if not isfinite(v.dot(v)):
+            if not all_finite(v):
                 raise NonFiniteError("v contains NaN or inf")
         if self._q is not None:
             self._q[:] = q
-        if self._dt is not None:
-            self._dt[0] = self._dt_value
         if self._needs_v:
             if v is None:
                 v = self._zero_v

@@ -25,7 +25,7 @@ The core knows this contract only; implementations live in :mod:`wbc.solvers`.
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -64,7 +64,6 @@ class QPResult:
     z: np.ndarray
     iterations: int = -1
     message: str = ""
-    info: dict = field(default_factory=dict)
 
 
 @runtime_checkable

@@ -8,15 +8,9 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from .checks import check_finite
 from .errors import ShapeError, WbcError
-from .terms import (
-    Cost,
-    Inequality,
-    Task,
-    Term,
-    VariableBounds,
-    check_finite,
-)
+from .terms import Cost, Inequality, Task, Term, VariableBounds
 from .variables import Variables
 
 

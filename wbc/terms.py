@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from .errors import BoundsOrderError, NonFiniteError, ShapeError
+from .checks import check_finite
+from .errors import ShapeError
 
 if TYPE_CHECKING:  # pragma: no cover
     from .stack import Stack
@@ -59,24 +60,6 @@ def as_sx_column(value: Expr, rows: int | None, what: str, allow_inf: bool = Fal
     if arr.ndim != 1 or (rows is not None and arr.shape[0] != rows):
         raise ShapeError(f"{what}: expected shape ({rows},), got {np.shape(value)}")
     return ca.SX(ca.DM(arr))
-
-
-def check_finite(arr: np.ndarray, what: str, allow_inf: bool = False) -> None:
-    """Raise :class:`NonFiniteError` naming ``what`` if ``arr`` holds NaN (or inf)."""
-    if allow_inf:
-        if np.isnan(arr).any():
-            raise NonFiniteError(f"{what} contains NaN")
-    elif not np.isfinite(arr).all():
-        raise NonFiniteError(f"{what} contains NaN or inf")
-
-
-def check_bounds_order(lower: np.ndarray, upper: np.ndarray, what: str) -> None:
-    """Raise :class:`BoundsOrderError` naming the first index where ``lower > upper``."""
-    bad = np.flatnonzero(np.asarray(lower) > np.asarray(upper))
-    if bad.size:
-        i = int(bad[0])
-        raise BoundsOrderError(f"{what}: lower > upper at index {i} "
-                               f"({np.ravel(lower)[i]} > {np.ravel(upper)[i]})")
 
 
 class Task:

@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.linalg import get_lapack_funcs
 
-from .compiler import LEVEL, SCALING_LP, CompiledStack, QPBlock
+from .compiler import SCALING_LP, CompiledStack, QPBlock
 from .errors import UnknownNameError, WbcError
 from .qp import Backend, QPResult, Status
 from .solution import LevelResult, Solution, Timings
@@ -28,6 +28,8 @@ BackendSpec = str | Callable[[], Backend]
 
 _ABS_RANK_TOL = 1e-12
 _GESDD = get_lapack_funcs("gesdd", dtype=np.float64)
+_INCONSISTENT = ("the task's equations are inconsistent (target outside the range of its "
+                 "Jacobian): no scale s > 0 can hold them")
 
 
 def _svd(M: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -58,7 +60,9 @@ class _BlockState:
                  backend: Backend) -> None:
         self.block = block
         nz, m = block.n_z, block.m_total
-        self.H = np.zeros((nz, nz), order="F")
+        # CasADi writes H column-major; read row-major, that is Hᵀ, the same quadratic form (and
+        # the same matrix: the compiled H is symmetric). C order spares backends a conversion.
+        self.H = np.zeros((nz, nz))
         self.g = np.zeros(nz)
         self.A = np.zeros((m, nz))  # C order: row blocks are contiguous
         self.lA = np.full(m, -np.inf)
@@ -70,7 +74,7 @@ class _BlockState:
         self.buffer, self.evaluate = block.function.buffer()
         self.buffer.set_arg(0, memoryview(p))
         top = block.m_top
-        outputs = [self.H.reshape(-1, order="F"), self.g, self.A[:top].reshape(-1),
+        outputs = [self.H.reshape(-1), self.g, self.A[:top].reshape(-1),
                    self.lA[:top], self.uA[:top], self.lb[:n], self.ub[:n],
                    E[block.e_offset:block.e_offset + block.m_cost].reshape(-1)]
         for i, out in enumerate(outputs):
@@ -82,13 +86,13 @@ class _BlockState:
         self.soft_rows, self.soft_lA, self.soft_uA = self.A[soft, :n], self.lA[soft], self.uA[soft]
         self.eq_rows, self.eq_lA, self.eq_uA = self.A[eq, :n], self.lA[eq], self.uA[eq]
         self.lb_x, self.ub_x = self.lb[:n], self.ub[:n]
+        self.qp = (self.H, self.g, self.A, self.lA, self.uA, self.lb, self.ub)
+        self.has_frozen_rows = bool(block.n_frozen_cost or block.n_frozen_soft)
         self.backend = backend
         self.ready = False  # backend.setup done
         self.warm: np.ndarray | None = None
         self.result: QPResult | None = None  # last backend result (multipliers included)
 
-    def qp(self) -> tuple:
-        return self.H, self.g, self.A, self.lA, self.uA, self.lb, self.ub
 
 
 class Workspace:
@@ -160,7 +164,7 @@ class Workspace:
     def last_qps(self) -> list[tuple]:
         """For diagnostics and tests: per QP of the last tick, ``(label, (H, g, A, lA, uA, lb,
         ub), QPResult)`` — the exact arrays the backend saw (live buffers, copy to keep)."""
-        return [(s.block.label, s.qp(), s.result) for s in self._blocks[:self._reached]]
+        return [(s.block.label, s.qp, s.result) for s in self._blocks[:self._reached]]
 
     # ------------------------------------------------------------------ the tick
     def solve(self) -> Solution:
@@ -169,27 +173,36 @@ class Workspace:
         if self._unset:
             raise WbcError(f"parameters never set: {sorted(self._unset)}")
         n = self.compiled.n
-        timings = Timings()
+        clock = time.perf_counter
+        assembly = solving = 0.0
         levels: list[LevelResult] = []
         scales: dict[int, float] = {}
-        x = np.zeros(n)
+        x = None  # the decision vector after the last level solved
         status, message = Status.SOLVED, ""
         for reached, state in enumerate(self._blocks, start=1):
             self._reached = reached
             block = state.block
-            t0 = time.perf_counter()
+            t0 = clock()
             state.evaluate()
-            rank = self._append_frozen_rows(state, x)
+            rank = self._append_frozen_rows(state, x) if state.has_frozen_rows else 0
             consistent = block.kind != SCALING_LP or self._compress_task_rows(state)
-            t1 = time.perf_counter()
-            result = self._solve_block(state) if consistent else QPResult(
-                np.zeros(block.n_z), Status.INFEASIBLE, np.zeros(block.m_total),
-                np.zeros(block.n_z), message="the task's equations are inconsistent (target "
-                "outside the range of its Jacobian): no scale s > 0 can hold them")
-            t2 = time.perf_counter()
-            timings.assembly += t1 - t0
-            timings.solve += t2 - t1
+            t1 = clock()
+            if not consistent:
+                result = QPResult(np.zeros(block.n_z), Status.INFEASIBLE, np.zeros(block.m_total),
+                                  np.zeros(block.n_z), message=_INCONSISTENT)
+            elif state.ready:
+                state.backend.update(*state.qp)
+                result = state.backend.solve(state.warm)
+            else:
+                state.backend.setup(*state.qp)
+                state.ready = True
+                result = state.backend.solve(None)
+            t2 = clock()
+            state.result = result
+            assembly += t1 - t0
+            solving += t2 - t1
             if result.status is not Status.SOLVED:
+                state.warm = None
                 status = result.status
                 message = f"{block.label}: {result.status.value}" + (
                     f" ({result.message})" if result.message else "") + self._diagnose(state)
@@ -197,6 +210,8 @@ class Workspace:
                                           result.iterations, result.message))
                 break
             z = result.x
+            if self.warm_start:
+                state.warm = z
             if block.kind == SCALING_LP:
                 s = min(max(float(z[n]), 0.0), 1.0)
                 scales[block.priority] = s
@@ -204,21 +219,12 @@ class Workspace:
                 level_x = z[:n].copy()
             else:
                 x = level_x = z[:n].copy()
-                if block.kind == LEVEL and block.m_soft:
+                if block.m_soft:
                     self._freeze_soft_rows(state, z[n:])
             levels.append(LevelResult(block.label, result.status, level_x, rank,
                                       result.iterations))
-        return Solution(x, status, levels, self.compiled.variables, scales, timings, message)
-
-    def _solve_block(self, state: _BlockState) -> QPResult:
-        if state.ready:
-            state.backend.update(*state.qp())
-        else:
-            state.backend.setup(*state.qp())
-            state.ready = True
-        result = state.result = state.backend.solve(state.warm if self.warm_start else None)
-        state.warm = result.x if result.status is Status.SOLVED else None
-        return result
+        return Solution(np.zeros(n) if x is None else x, status, levels,
+                        self.compiled.variables, scales, Timings(0.0, assembly, solving), message)
 
     def _append_frozen_rows(self, state: _BlockState, x: np.ndarray) -> int:
         """Write earlier levels' frozen rows below the block's own rows; return the rank of the
