@@ -26,6 +26,7 @@ only); there are no base coordinates.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 
 import casadi as ca
@@ -251,7 +252,10 @@ def symbolic_frame_kinematics(model: pin.Model, frame_id: int) -> ca.Function:
             J[3:, idx_v] = axis
         else:
             J[:3, idx_v] = axis
-    return ca.Function(f"kinematics_{frame.name}", [q], [pose, J], ["q"], ["pose", "J"])
+    # CasADi function names must be identifiers without "__"; URDF frame names need not be
+    # (e.g. "base_link-base_fixed_joint")
+    name = "_".join(["kinematics", *re.findall(r"[A-Za-z0-9]+", frame.name)])
+    return ca.Function(name, [q], [pose, J], ["q"], ["pose", "J"])
 
 
 def load_panda(

@@ -58,6 +58,10 @@ per-call allocation or conversion on the Python side::
     robot.frame_drift(None, None, "ee", out=drift_view)   # (6,)
     robot.frame_pose(None, "ee", out=pose_view)           # (4, 4)
 
+With ``Controller(..., kinematics="compiled")`` a tick needs no update at all:
+:meth:`MobileManipulator.symbolic_frame` gives the pose and the ``"world"`` Jacobian as a CasADi
+function of ``q``, evaluated inside the compiled level functions.
+
 A :class:`MobileManipulator` holds one pinocchio ``Data``: it is not thread-safe; use
 :meth:`MobileManipulator.clone` (shares the model, owns new buffers) per thread.
 """
@@ -69,12 +73,14 @@ import dataclasses
 import math
 import os
 
+import casadi as ca
 import numpy as np
 import pinocchio as pin
 
 from wbc.errors import NonFiniteError, ShapeError, UnknownNameError
 
 from .arms import Arm, arm_from_model, arm_from_urdf
+from .fixed_base import symbolic_frame_kinematics
 from .limits import Limits
 from .planar_base import HOLONOMIC_MAP, UNICYCLE_MAP, PlanarBase
 
@@ -178,6 +184,8 @@ class MobileManipulator:
         for index, frame in enumerate(self.model.frames):
             self._frame_ids.setdefault(frame.name, index)
         self._ancestors = self._arm_ancestor_mask()
+        # frame id -> symbolic_frame function; immutable, so shared by clones
+        self._symbolic: dict[int, ca.Function] = {}
         self._allocate()
 
     # ------------------------------------------------------------------ construction
@@ -484,6 +492,38 @@ class MobileManipulator:
         if reference == "base":
             self._rotate_to_base(out)
         return out
+
+    def symbolic_frame(self, frame: str | int = "ee") -> ca.Function:
+        """``q -> (pose, J)`` as a CasADi function (cached per frame), for
+        ``Controller(..., kinematics="compiled")``.
+
+        ``pose`` (4 × 4) is :meth:`frame_pose` (world pose, translation [m]) and ``J``
+        (6 × nv) is :meth:`frame_jacobian` with ``reference="world"``: rows ``[linear [m/s];
+        angular [rad/s]]`` of the frame origin's twist in world axes per unit of the robot's
+        *own* velocity coordinates ``v`` (base frame ``(v_x, v_y, ω)`` or ``(v, ω)``, then
+        the arm rates), i.e. ``J_pin(q) S(q)`` with ``S = blockdiag(H(θ), I)``. ``frame`` is
+        anything :meth:`frame_id` accepts; an unknown one raises
+        :class:`~wbc.UnknownNameError` as the numeric getters do.
+        """
+        fid = self.frame_id(frame)
+        function = self._symbolic.get(fid)
+        if function is None:
+            function = self._symbolic[fid] = self._symbolic_frame(fid)
+        return function
+
+    def _symbolic_frame(self, fid: int) -> ca.Function:
+        # pinocchio's configuration is ours (scalar root joints PX, PY, RZ), so the 1-DoF
+        # chain kinematics give pose and J_pin = ∂(twist)/∂q̇ directly; only the base columns
+        # change, by H(θ) = Rz(θ) B as in update()
+        joint_space = symbolic_frame_kinematics(self.model, fid)
+        q = ca.SX.sym("q", self.nq)
+        pose, J_pin = joint_space(q)
+        c, s = ca.cos(q[2]), ca.sin(q[2])
+        rz = ca.SX(3, 3)  # structural zeros keep the products below lean
+        rz[0, 0], rz[0, 1], rz[1, 0], rz[1, 1], rz[2, 2] = c, -s, s, c, 1
+        H = rz @ ca.sparsify(ca.DM(self.base.body_map))
+        J = ca.horzcat(J_pin[:, :3] @ H, J_pin[:, 3:])
+        return ca.Function(joint_space.name(), [q], [pose, J], ["q"], ["pose", "J"])
 
     def _rotate_to_base(self, rows: np.ndarray) -> None:
         """Apply ``blockdiag(Rᵀ, Rᵀ)``, ``R = Rz(θ)``, in place to 6-row arrays."""
