@@ -13,12 +13,31 @@ import math
 
 import numpy as np
 
-from .errors import BoundsOrderError, NonFiniteError
+from .errors import BoundsOrderError, NonFiniteError, ShapeError
 
 
 def all_finite(vector: np.ndarray) -> bool:
     """Whether a 1-D float array holds neither NaN nor ±inf (see the module docstring)."""
     return math.isfinite(sum(vector.tolist()))
+
+
+def checked_array(value, shape: tuple[int, int], what: str,
+                  allow_inf: bool = False) -> np.ndarray:
+    """``value`` as a float array of ``shape = (rows, cols)``: a scalar fits ``(1, 1)`` and a
+    1-D array of ``rows`` entries fits a column. Raises :class:`ShapeError` or
+    :class:`NonFiniteError` naming ``what`` (NaN is always refused, ``±inf`` unless
+    ``allow_inf``)."""
+    arr = np.asarray(value, dtype=float)
+    rows, cols = shape
+    if arr.ndim == 0 and rows * cols == 1:
+        arr = arr.reshape(1, 1)
+    elif arr.ndim == 1 and cols == 1 and arr.shape[0] == rows:
+        arr = arr.reshape(rows, 1)
+    if arr.shape != shape:
+        raise ShapeError(f"{what} expects shape {(rows,) if cols == 1 else shape}, "
+                         f"got {np.shape(value)}")
+    check_finite(arr, what, allow_inf)
+    return arr
 
 
 def check_finite(arr: np.ndarray, what: str, allow_inf: bool = False) -> None:

@@ -62,7 +62,7 @@ from functools import partial
 import casadi as ca
 import numpy as np
 
-from .checks import all_finite
+from .checks import all_finite, checked_array
 from .compiler import CompiledStack, jit_compiled
 from .errors import InfeasibleError, NonFiniteError, ShapeError, UnknownNameError, WbcError
 from .qp import Status
@@ -250,18 +250,8 @@ class Controller:
         inf; nothing is written if a name is unknown)."""
         resolved = [(key, self._reference(key), value) for key, value in references.items()]
         for key, (name, view, allow_inf), value in resolved:
-            arr = np.asarray(value, dtype=float)
-            if arr.shape != view.shape:
-                if arr.size != view.size or (view.shape[1] != 1 and arr.ndim != 2):
-                    shown = view.shape if view.shape[1] != 1 else (view.shape[0],)
-                    raise ShapeError(f"reference {key!r} (parameter {name!r}) expects shape "
-                                     f"{shown}, got {arr.shape}")
-                arr = arr.reshape(view.shape)
-            finite = np.isfinite(arr).all() if not allow_inf else not np.isnan(arr).any()
-            if not finite:
-                raise NonFiniteError(f"reference {key!r} (parameter {name!r}) contains NaN"
-                                     + ("" if allow_inf else " or inf"))
-            view[...] = arr
+            view[...] = checked_array(value, view.shape,
+                                      f"reference {key!r} (parameter {name!r})", allow_inf)
 
     # ------------------------------------------------------------------ the tick
     def step(self, q, v=None, **references) -> np.ndarray:

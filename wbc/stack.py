@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .checks import check_finite
+from .checks import check_finite, checked_array
 from .errors import ShapeError, WbcError
 from .terms import Cost, Inequality, Task, Term, VariableBounds
 from .variables import Variables
@@ -143,11 +143,12 @@ class Stack:
                 raise ShapeError(f"parameter {name!r} is declared with shape {shape} but "
                                  f"exists with shape {known.shape}")
             if default is not None:
-                known.default = _checked_value(default, known)
+                known.default = checked_array(default, known.shape, f"parameter {name!r}",
+                                              known.allow_inf)
             return known.symbol
         param = Parameter(name, shape, ca.SX.sym(name, *shape), None, allow_inf)
         if default is not None:
-            param.default = _checked_value(default, param)
+            param.default = checked_array(default, shape, f"parameter {name!r}", allow_inf)
         self.parameters[name] = param
         self._compiled = None
         return param.symbol
@@ -275,21 +276,6 @@ def _normalise_shape(shape, name: str) -> tuple[int, int]:
     if len(shape) != 2 or min(shape) < 0:
         raise ShapeError(f"parameter {name!r}: bad shape {shape}")
     return shape
-
-
-def _checked_value(value, param: Parameter) -> np.ndarray:
-    """``value`` as an array of ``param.shape``; raises on bad shape or non-finite entries."""
-    arr = np.asarray(value, dtype=float)
-    rows, cols = param.shape
-    if arr.ndim == 0 and rows * cols == 1:
-        arr = arr.reshape(1, 1)
-    if arr.ndim == 1 and cols == 1 and arr.shape[0] == rows:
-        arr = arr.reshape(rows, 1)
-    if arr.shape != param.shape:
-        raise ShapeError(f"parameter {param.name!r} expects shape "
-                         f"{(rows,) if cols == 1 else param.shape}, got {np.shape(value)}")
-    check_finite(arr, f"parameter {param.name!r}", param.allow_inf)
-    return arr
 
 
 def _metric_and_pins(n: int, metric, mobility) -> tuple[np.ndarray, np.ndarray | None]:

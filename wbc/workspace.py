@@ -18,11 +18,11 @@ from collections.abc import Callable
 import numpy as np
 from scipy.linalg import get_lapack_funcs
 
+from .checks import checked_array
 from .compiler import SCALING_LP, CompiledStack, QPBlock
 from .errors import UnknownNameError, WbcError
 from .qp import Backend, QPResult, Status
 from .solution import LevelResult, Solution, Timings
-from .stack import Parameter, _checked_value
 
 BackendSpec = str | Callable[[], Backend]
 
@@ -156,9 +156,8 @@ class Workspace:
         """Set parameters by name (checked: shape, NaN, inf where illegal)."""
         for name, value in values.items():
             view = self.view(name)
-            offset, shape, allow_inf = self.compiled.parameters[name]
-            param = Parameter(name, shape, None, None, allow_inf)
-            view[...] = _checked_value(value, param)
+            _, shape, allow_inf = self.compiled.parameters[name]
+            view[...] = checked_array(value, shape, f"parameter {name!r}", allow_inf)
         return self
 
     def last_qps(self) -> list[tuple]:
