@@ -102,7 +102,10 @@ class Controller:
         dt: control period [s], written into parameter ``"dt"`` every tick.
         fallback: what to command when a solve fails (the solution still says why):
             ``"hold"`` — zeros (for a velocity-level stack: stop); ``"last"`` — the previous
-            command (zeros if none); ``"raise"`` — raise :class:`~wbc.InfeasibleError`.
+            command (zeros if none); ``"raise"`` — raise :class:`~wbc.InfeasibleError`. When
+            only a lower priority failed (``solution.partial``), the command is the solution
+            of the levels above it — every hard constraint and higher task still holds — and
+            ``solution.fallback`` is ``"partial"``; only ``"raise"`` raises then too.
         warm_start: warm-start every QP from its previous solution.
         kinematics: ``"numeric"`` (default) — frame poses and Jacobians come from the robot's
             getters every tick; ``"compiled"`` — they are computed *inside* the compiled level
@@ -294,7 +297,10 @@ class Controller:
         solution = self.workspace.solve()
         solution.timings.model = t1 - t0
         if solution.status is Status.SOLVED:
-            solution.fallback = None
+            command = solution.x
+        elif solution.partial and self.fallback != "raise":
+            solution.fallback = "partial"
+            solution.message += "; command from the levels above (partial)"
             command = solution.x
         else:
             command = self._fall_back(solution)

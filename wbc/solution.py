@@ -40,6 +40,9 @@ class LevelResult:
         frozen_rank: rank of the earlier levels' frozen cost rows it was solved under.
         iterations: backend iterations (``-1`` if unknown).
         message: the backend's message on failure.
+        frozen_band: relative half-width of the band the frozen rows were kept in: 0 for exact
+            equalities, the stack's ``freeze_tol``, or the workspace's retry band when the
+            exact solve failed (see :class:`~wbc.Stack`).
     """
 
     label: str
@@ -48,6 +51,7 @@ class LevelResult:
     frozen_rank: int
     iterations: int = -1
     message: str = ""
+    frozen_band: float = 0.0
 
 
 @dataclass(slots=True)
@@ -63,8 +67,11 @@ class Solution:
         scales: ``priority -> s`` for every scaling level.
         timings: :class:`Timings` [s].
         message: empty on success, else what failed and where.
-        fallback: set by :class:`~wbc.Controller`: ``None`` when the QP was solved, else the
-            fallback policy that produced the command.
+        partial: the solve failed at a lower priority, and ``x`` is the solution of every
+            level above it (hard constraints included): a usable command. ``False`` when solved
+            or when the first level failed.
+        fallback: set by :class:`~wbc.Controller`: ``None`` when the QP was solved, else what
+            produced the command (``"partial"`` or the fallback policy).
     """
 
     x: np.ndarray
@@ -74,6 +81,7 @@ class Solution:
     scales: dict[int, float] = field(default_factory=dict)
     timings: Timings = field(default_factory=Timings)
     message: str = ""
+    partial: bool = False
     fallback: str | None = None
 
     @property

@@ -70,11 +70,12 @@ class Stack:
         rank_tol: relative singular-value tolerance of the frozen rows' rank compression.
         freeze_tol: frozen rows hold ``|a x − a x*| <= freeze_tol·(1 + |a x*|)`` rather than an
             exact equality. At a vertex (a saturated optimum, as after a scaling LP) the exact
-            equalities and the active bounds meet in one point, and a solver's last-digit error
-            can make the next level infeasible for an active-set solver (seen with quadprog);
-            a band of ~1e-9 removes that, but interior-point and augmented-Lagrangian solvers
-            (clarabel, proxqp) handle thin bands worse than equalities, so the default ``0``
-            keeps exact equalities.
+            equalities and the active bounds meet in one point, which solvers can miss by
+            their last digit and call infeasible. With the default ``0`` the frozen rows are
+            exact, and a level that fails under them is solved once more within a band of
+            1e-7 (``LevelResult.frozen_band`` says so): interior-point and augmented-Lagrangian
+            solvers (clarabel, proxqp) handle thin bands worse than equalities, so the band is
+            not the first try. A positive value uses that band from the start.
 
     Example:
         >>> import numpy as np, wbc

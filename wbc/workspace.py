@@ -28,6 +28,7 @@ BackendSpec = str | Callable[[], Backend]
 
 _ABS_RANK_TOL = 1e-12
 _GESDD = get_lapack_funcs("gesdd", dtype=np.float64)
+_RETRY_BAND = 1e-7  # relative half-width of the frozen rows when the exact solve failed
 _INCONSISTENT = ("the task's equations are inconsistent (target outside the range of its "
                  "Jacobian): no scale s > 0 can hold them")
 
@@ -196,6 +197,15 @@ class Workspace:
                 state.backend.setup(*state.qp)
                 state.ready = True
                 result = state.backend.solve(None)
+            if result.status is not Status.SOLVED and rank and not self.compiled.freeze_tol:
+                # Exact frozen rows through a vertex of the bounds leave a single feasible point,
+                # which solvers can miss by their last digit: retry within a thin band.
+                band = _RETRY_BAND
+                self._widen_frozen_rows(state, rank, band)
+                state.backend.update(*state.qp)
+                result = state.backend.solve(None)
+            else:
+                band = self.compiled.freeze_tol if rank else 0.0
             t2 = clock()
             state.result = result
             assembly += t1 - t0
@@ -206,7 +216,7 @@ class Workspace:
                 message = f"{block.label}: {result.status.value}" + (
                     f" ({result.message})" if result.message else "") + self._diagnose(state)
                 levels.append(LevelResult(block.label, result.status, np.zeros(n), rank,
-                                          result.iterations, result.message))
+                                          result.iterations, result.message, band))
                 break
             z = result.x
             if self.warm_start:
@@ -221,9 +231,11 @@ class Workspace:
                 if block.m_soft:
                     self._freeze_soft_rows(state, z[n:])
             levels.append(LevelResult(block.label, result.status, level_x, rank,
-                                      result.iterations))
+                                      result.iterations, "", band))
+        partial = x is not None and status is not Status.SOLVED
         return Solution(np.zeros(n) if x is None else x, status, levels,
-                        self.compiled.variables, scales, Timings(0.0, assembly, solving), message)
+                        self.compiled.variables, scales, Timings(0.0, assembly, solving), message,
+                        partial)
 
     def _append_frozen_rows(self, state: _BlockState, x: np.ndarray) -> int:
         """Write earlier levels' frozen rows below the block's own rows; return the rank of the
@@ -248,17 +260,25 @@ class Workspace:
         rows, lA, uA = state.eq_rows, state.eq_lA, state.eq_uA
         rows[:rank] = Vt[:rank]
         rows[rank:] = 0.0
-        rhs = Vt[:rank] @ x
-        if self.compiled.freeze_tol:
-            band = self.compiled.freeze_tol * (1.0 + np.abs(rhs))
-            lA[:rank] = rhs - band
-            uA[:rank] = rhs + band
-        else:
-            lA[:rank] = rhs
-            uA[:rank] = rhs
+        # At the earlier optimum clipped into the bounds: solvers return x up to their primal
+        # tolerance (daqp: ~1e-11 outside an active bound), and rows frozen at such a point
+        # leave later levels a feasible set the solver can judge empty.
+        rhs = Vt[:rank] @ np.minimum(np.maximum(x, state.lb_x), state.ub_x)
+        lA[:rank] = rhs
+        uA[:rank] = rhs
         lA[rank:] = -np.inf
         uA[rank:] = np.inf
+        if self.compiled.freeze_tol:
+            self._widen_frozen_rows(state, rank, self.compiled.freeze_tol)
         return rank
+
+    @staticmethod
+    def _widen_frozen_rows(state: _BlockState, rank: int, tol: float) -> None:
+        """Turn the ``rank`` frozen equalities ``a x = c`` into ``|a x − c| <= tol·(1 + |c|)``."""
+        c = state.eq_lA[:rank].copy()
+        band = tol * (1.0 + np.abs(c))
+        state.eq_lA[:rank] = c - band
+        state.eq_uA[:rank] = c + band
 
     def _compress_task_rows(self, state: _BlockState) -> bool:
         """Replace a scaling LP's equality rows ``[A, −t] z = −r0`` by an orthonormal basis of
