@@ -12,8 +12,11 @@ a closed loop tracking a circle with the end effector is run once with the refer
 (clarabel, tight profile). Every backend then replays exactly that state sequence
 (``≥ 1000`` ticks after a warm-up), so that all backends solve the same problems with realistic
 warm starts; per tick it records the wall time of ``Controller.step`` and its split into
-kinematics (model stage) / assembly / solve, whether it succeeded, and the largest difference
-of its command from the reference's.
+kinematics (model stage) / assembly / solve, whether it succeeded (or only partly: a lower level
+failed and the command is the levels above it), and the largest difference of its command from
+the reference's. Controllers use ``kinematics="compiled"`` by default (poses and Jacobians
+inside the compiled functions; ``--kinematics numeric`` times pinocchio's getters instead) and
+the CasADi virtual machine (``--jit`` compiles to C).
 
 The scaling study times the ``one_level`` stack on fixed-base serial chains of 7 to 100
 joints. Outputs, in ``--out``: ``solver_timing.json`` (raw per-tick samples [µs] and the
@@ -132,11 +135,14 @@ def reference_run(robot, kind: str, ticks: int, q0: np.ndarray | None = None) ->
     return {"states": states, "targets": targets, "commands": commands}
 
 
-def replay(robot, kind: str, backend: str, run: dict, warmup: int) -> dict:
-    """Time ``backend`` on the reference state sequence; raw samples in µs."""
-    ctrl = wbc.Controller(robot, build_stack(robot, kind), backend=backend, dt=DT)
+def replay(robot, kind: str, backend: str, run: dict, warmup: int,
+           kinematics: str = "compiled", jit: bool = False) -> dict:
+    """Time ``backend`` on the reference state sequence; raw samples in µs. ``kinematics`` and
+    ``jit`` are the :class:`wbc.Controller` options."""
+    ctrl = wbc.Controller(robot, build_stack(robot, kind), backend=backend, dt=DT,
+                          kinematics=kinematics, jit=jit)
     samples = {"tick": [], "kinematics": [], "assembly": [], "solve": []}
-    ok, diff = [], []
+    ok, partial, diff = [], [], []
     for k, ((q, v), T) in enumerate(zip(run["states"], run["targets"], strict=True)):
         refs = _references(kind, T)
         t0 = time.perf_counter()
@@ -150,9 +156,11 @@ def replay(robot, kind: str, backend: str, run: dict, warmup: int) -> dict:
         samples["assembly"].append(sol.timings.assembly * 1e6)
         samples["solve"].append(sol.timings.solve * 1e6)
         ok.append(sol.ok)
+        partial.append(sol.partial)
         diff.append(float(np.abs(cmd - run["commands"][k]).max()))
     return {"samples": {key: np.round(val, 3).tolist() for key, val in samples.items()},
-            "success_rate": float(np.mean(ok)), "max_abs_diff_vs_reference": float(max(diff)),
+            "success_rate": float(np.mean(ok)), "partial_rate": float(np.mean(partial)),
+            "max_abs_diff_vs_reference": float(max(diff)),
             "stats": {key: _stats(val) for key, val in samples.items()}}
 
 
@@ -184,10 +192,12 @@ def serial_chain(n: int) -> FixedBaseRobot:
 
 # ----------------------------------------------------------------------------- study
 def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, warmup: int,
-        scaling_ticks: int, scaling_joints: tuple[int, ...], log=print) -> dict:
+        scaling_ticks: int, scaling_joints: tuple[int, ...], kinematics: str = "compiled",
+        jit: bool = False, log=print) -> dict:
     """The whole study; returns the JSON-able report."""
     report = {"machine": describe_machine(), "dt_s": DT, "ticks": ticks, "warmup": warmup,
-              "reference": "/".join(REFERENCE), "results": {}, "scaling": {}}
+              "kinematics": kinematics, "jit": jit, "reference": "/".join(REFERENCE),
+              "results": {}, "scaling": {}}
     combos = [(r, s) for r in robots for s in stacks]
     for i, (name, kind) in enumerate(combos, start=1):
         robot = wbc.robots.load(name)
@@ -195,14 +205,14 @@ def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, w
         for backend in backends:
             log(f"[{i}/{len(combos)}] {name} / {kind} / {backend}")
             report["results"].setdefault(name, {}).setdefault(kind, {})[backend] = replay(
-                robot, kind, backend, ref, warmup)
+                robot, kind, backend, ref, warmup, kinematics, jit)
     for j, n in enumerate(scaling_joints, start=1):
         robot = serial_chain(n)
         # start bent (the straight chain is singular)
         ref = reference_run(robot, "one_level", warmup + scaling_ticks, np.full(n, 0.3))
         for backend in backends:
             log(f"[scaling {j}/{len(scaling_joints)}] {n} joints / {backend}")
-            result = replay(robot, "one_level", backend, ref, warmup)
+            result = replay(robot, "one_level", backend, ref, warmup, kinematics, jit)
             report["scaling"].setdefault(backend, {})[str(n)] = {
                 "stats": result["stats"], "success_rate": result["success_rate"]}
     return report
@@ -212,19 +222,23 @@ def markdown(report: dict) -> str:
     """Tables: per robot and stack, median / p95 / max tick and its split, per backend."""
     out = [f"Machine: {report['machine']['cpu']}, {report['machine']['cores']} cores, "
            f"Python {report['machine']['python']}. Ticks: {report['ticks']} after "
-           f"{report['warmup']} warm-up; reference {report['reference']}. Times in µs.", ""]
+           f"{report['warmup']} warm-up; kinematics {report['kinematics']}, "
+           f"jit={report['jit']}; reference {report['reference']}. Times in µs. 'partial': "
+           "ticks where a lower level failed and the command is the levels above it.", ""]
     for name, per_stack in report["results"].items():
         for kind, per_backend in per_stack.items():
             out += [f"### {name} — {kind}", "",
                     "| backend | tick median | p95 | max | kinematics | assembly | solve | "
-                    "success | max abs diff vs ref |", "|---|---|---|---|---|---|---|---|---|"]
+                    "success | partial | max abs diff vs ref |",
+                    "|---|---|---|---|---|---|---|---|---|---|"]
             for backend, r in per_backend.items():
                 s = r["stats"]
                 out.append(
                     f"| {backend} | {s['tick']['median']:.1f} | {s['tick']['p95']:.1f} | "
                     f"{s['tick']['max']:.0f} | {s['kinematics']['median']:.1f} | "
                     f"{s['assembly']['median']:.1f} | {s['solve']['median']:.1f} | "
-                    f"{100 * r['success_rate']:.1f} % | {r['max_abs_diff_vs_reference']:.1e} |")
+                    f"{100 * r['success_rate']:.1f} % | {100 * r['partial_rate']:.1f} % | "
+                    f"{r['max_abs_diff_vs_reference']:.1e} |")
             out.append("")
     if report["scaling"]:
         joints = sorted({int(n) for per in report["scaling"].values() for n in per})
@@ -299,6 +313,12 @@ def main(argv: list[str] | None = None) -> int:
                         help="timed ticks per chain in the scaling study (default 300)")
     parser.add_argument("--scaling-joints", type=int, nargs="*", default=list(SCALING_JOINTS),
                         help="chain sizes of the scaling study (none: skip it)")
+    parser.add_argument("--kinematics", choices=("compiled", "numeric"), default="compiled",
+                        help="model stage: poses and Jacobians inside the compiled functions "
+                             "(default) or from pinocchio every tick")
+    parser.add_argument("--jit", action="store_true",
+                        help="JIT-compile the level functions to C (faster ticks; about 0.5 s "
+                             "per level and controller to build, several minutes in all)")
     parser.add_argument("--out", type=Path, default=Path("results"),
                         help="output folder (default ./results)")
     args = parser.parse_args(argv)
@@ -318,7 +338,8 @@ def main(argv: list[str] | None = None) -> int:
     if any(n < 2 for n in args.scaling_joints):
         parser.error("--scaling-joints sizes must be >= 2")
     report = run(robots, args.stacks, backends, args.ticks, args.warmup, args.scaling_ticks,
-                 tuple(args.scaling_joints), log=lambda msg: print(msg, flush=True))
+                 tuple(args.scaling_joints), args.kinematics, args.jit,
+                 log=lambda msg: print(msg, flush=True))
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "solver_timing.json").write_text(json.dumps(report))
     table = markdown(report)

@@ -45,7 +45,7 @@ def check_finite(arr: np.ndarray, what: str, allow_inf: bool = False) -> None:
     if allow_inf:
         if np.isnan(arr).any():
             raise NonFiniteError(f"{what} contains NaN")
-    elif not np.isfinite(arr).all():
+    elif not all_finite(arr.reshape(-1)):
         raise NonFiniteError(f"{what} contains NaN or inf")
 
 
