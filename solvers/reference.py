@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wbc.errors import BoundsOrderError, NonFiniteError, ShapeError
+from wbc.errors import BoundsOrderError, InvalidValueError, NonFiniteError, ShapeError
 from wbc.qp import Status
 
 __all__ = [
@@ -99,7 +99,7 @@ def _nonneg_scalar(x, name: str) -> float:
     if not np.isfinite(x):
         raise NonFiniteError(f"{name} must be finite, got {x}")
     if x < 0.0:
-        raise ValueError(f"{name} must be >= 0, got {x}")
+        raise InvalidValueError(f"{name} must be >= 0, got {x}")
     return x
 
 
@@ -144,7 +144,7 @@ def _cutoff(smax: float, shape: tuple[int, int], tol, rtol) -> float:
     tol = DEFAULT_TOL if tol is None else float(tol)
     rtol = max(shape) * _EPS if rtol is None else float(rtol)
     if not (np.isfinite(tol) and np.isfinite(rtol)) or tol < 0 or rtol < 0:
-        raise ValueError(f"tol and rtol must be finite and >= 0, got tol={tol}, rtol={rtol}")
+        raise InvalidValueError(f"tol and rtol must be finite and >= 0, got tol={tol}, rtol={rtol}")
     return max(tol, rtol * smax)
 
 
@@ -221,18 +221,19 @@ def _mobility_sqrt(mobility, n: int) -> np.ndarray:
         raise NonFiniteError("mobility holds NaN or inf")
     scale = float(np.max(np.abs(M))) if M.size else 0.0
     if not np.allclose(M, M.T, rtol=0.0, atol=1e-12 * max(scale, 1e-300)):
-        raise ValueError("mobility must be symmetric")
+        raise InvalidValueError("mobility must be symmetric")
     d = np.diag(M)
     if np.count_nonzero(M - np.diag(d)) == 0:
         # Diagonal: exact, no eigen-decomposition round-off (zero mobility stays exactly 0).
         if np.any(d < 0):
-            raise ValueError(f"mobility must be positive semi-definite, diagonal has {d.min()}")
+            raise InvalidValueError(
+                f"mobility must be positive semi-definite, diagonal has {d.min()}")
         return np.diag(np.sqrt(d))
     M = 0.5 * (M + M.T)
     w, Q = np.linalg.eigh(M)
     wmax = max(float(w[-1]), 0.0)
     if w[0] < -1e-8 * wmax:
-        raise ValueError(f"mobility must be positive semi-definite, eigenvalue {w[0]:.3e}")
+        raise InvalidValueError(f"mobility must be positive semi-definite, eigenvalue {w[0]:.3e}")
     # Eigenvalues within round-off of zero are exactly zero: otherwise sqrt would turn a 1e-16
     # round-off into a 1e-8 leak of motion into zero-mobility directions.
     w = np.where(w > 10.0 * n * _EPS * wmax, w, 0.0)

@@ -39,7 +39,7 @@ import casadi as ca
 import numpy as np
 
 from wbc.controller import check_frame
-from wbc.errors import ShapeError, WbcError
+from wbc.errors import InvalidValueError, ShapeError
 from wbc.terms import Cost, Task
 
 # Below these angles [rad] the closed forms are replaced by their Taylor series.
@@ -216,20 +216,20 @@ def _weights(weight, rows: int, what: str) -> np.ndarray | float:
     if arr.ndim == 0:
         value = float(arr)
         if not np.isfinite(value) or value < 0:
-            raise WbcError(f"{what}: weight must be a finite number >= 0, got {weight!r}")
+            raise InvalidValueError(f"{what}: weight must be a finite number >= 0, got {weight!r}")
         return value
     if arr.shape != (rows,):
         raise ShapeError(f"{what}: weight must be a scalar or have shape ({rows},), "
                          f"got {arr.shape}")
     if not np.isfinite(arr).all() or (arr < 0).any():
-        raise WbcError(f"{what}: weights must be finite and >= 0, got {arr}")
+        raise InvalidValueError(f"{what}: weights must be finite and >= 0, got {arr}")
     return arr
 
 
 def _check_gain(gain, what: str) -> float:
     gain = float(gain)
     if not np.isfinite(gain) or gain < 0:
-        raise WbcError(f"{what}: gain must be a finite number >= 0, got {gain!r}")
+        raise InvalidValueError(f"{what}: gain must be a finite number >= 0, got {gain!r}")
     return gain
 
 

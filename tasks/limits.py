@@ -18,7 +18,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from wbc.errors import WbcError
+from wbc.errors import InvalidValueError, WbcError
 from wbc.terms import Task, VariableBounds
 
 from .frame import velocity_block
@@ -45,7 +45,8 @@ class ConfigurationLimit(Task):
                  joints: int | None = None, block: str | None = None) -> None:
         gain = float(gain)
         if not 0.0 < gain <= 1.0:
-            raise WbcError(f"ConfigurationLimit {name!r}: gain must be in (0, 1], got {gain}")
+            raise InvalidValueError(
+                f"ConfigurationLimit {name!r}: gain must be in (0, 1], got {gain}")
         self.gain = gain
         self.nq, self.nv = int(robot.nq), int(robot.nv)
         self.n_arm = arm_size(robot, joints)
@@ -87,7 +88,7 @@ class VelocityLimit(Bounds):
     def __init__(self, robot, scale: float = 1.0, name: str | None = None,
                  block: str | None = None) -> None:
         if not np.isfinite(scale) or scale <= 0:
-            raise WbcError(f"VelocityLimit {name!r}: scale must be > 0, got {scale!r}")
+            raise InvalidValueError(f"VelocityLimit {name!r}: scale must be > 0, got {scale!r}")
         lower = scale * np.asarray(robot.limits.v_lower, dtype=float)
         upper = scale * np.asarray(robot.limits.v_upper, dtype=float)
         super().__init__(lower, upper, name=name, block=block)

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import linprog
 
-from wbc.errors import BoundsOrderError, NonFiniteError, ShapeError, WbcError
+from wbc.errors import BoundsOrderError, InvalidValueError, NonFiniteError, ShapeError, WbcError
 from wbc.qp import Status
 from wbc.solvers import reference as R
 
@@ -189,11 +189,11 @@ def test_weighted_bad_mobility():
     J = np.ones((2, 3))
     with pytest.raises(ShapeError):
         R.weighted_damped_pinv(J, 0.1, np.eye(2))
-    with pytest.raises(ValueError, match="symmetric"):
+    with pytest.raises(InvalidValueError, match="symmetric"):
         R.weighted_damped_pinv(J, 0.1, np.triu(np.ones((3, 3))))
-    with pytest.raises(ValueError, match="semi-definite"):
+    with pytest.raises(InvalidValueError, match="semi-definite"):
         R.weighted_damped_pinv(J, 0.1, np.diag([1.0, -1.0, 1.0]))
-    with pytest.raises(ValueError, match="semi-definite"):
+    with pytest.raises(InvalidValueError, match="semi-definite"):
         R.weighted_damped_pinv(J, 0.1, np.array([[1.0, 2, 0], [2, 1, 0], [0, 0, 1]]))
     with pytest.raises(NonFiniteError):
         R.weighted_damped_pinv(J, 0.1, [1.0, np.nan, 1.0])

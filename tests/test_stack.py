@@ -204,9 +204,9 @@ def test_infeasible_constraints_give_a_status_naming_the_level(backend):
 
 
 def test_bad_stack_arguments():
-    with pytest.raises(wbc.WbcError, match="damping"):
+    with pytest.raises(wbc.InvalidValueError, match="damping"):
         wbc.Stack(2, damping=-1.0)
-    with pytest.raises(wbc.WbcError, match="positive semi-definite"):
+    with pytest.raises(wbc.InvalidValueError, match="positive semi-definite"):
         wbc.Stack(2, mobility=np.array([1.0, -1.0]))
     with pytest.raises(wbc.ShapeError, match="positive integer size"):
         wbc.Variables(q=0)

@@ -12,6 +12,7 @@ from .errors import (
     BackendUnavailableError,
     BoundsOrderError,
     InfeasibleError,
+    InvalidValueError,
     NonAffineError,
     NonFiniteError,
     ShapeError,
@@ -29,9 +30,9 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Backend", "BackendUnavailableError", "BoundsOrderError", "CompiledStack", "Controller",
-    "Cost",
-    "Equality", "InfeasibleError", "Inequality", "LevelResult", "NonAffineError",
-    "NonFiniteError", "Parameter", "QPResult", "ShapeError", "Solution", "Stack", "Status",
+    "Cost", "Equality", "InfeasibleError", "Inequality", "InvalidValueError", "LevelResult",
+    "NonAffineError", "NonFiniteError", "Parameter", "QPResult", "ShapeError", "Solution",
+    "Stack", "Status",
     "Task", "Term", "Timings", "UnknownNameError", "VariableBounds", "Variables", "WbcError",
     "Workspace",
 ]

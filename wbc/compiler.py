@@ -21,7 +21,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from .errors import NonAffineError, WbcError
+from .errors import InvalidValueError, NonAffineError, WbcError
 from .terms import Cost, Equality, Inequality, VariableBounds, as_sx_column
 from .variables import Variables
 
@@ -220,7 +220,7 @@ def _level_terms(entries, x):
             target = _independent(term.target, x, aff.rows, f"target of {what}")
             weight = term.weight if isinstance(term, Cost) else 1.0
             if not isinstance(weight, ca.SX) and np.any(np.asarray(weight) < 0):
-                raise WbcError(f"weight of {what} must be >= 0, got {weight!r}")
+                raise InvalidValueError(f"weight of {what} must be >= 0, got {weight!r}")
             w = _independent(weight, x, aff.rows, f"weight of {what}") * e.weight
             sq = ca.sqrt(w)
             costs.append((ca.diag(sq) @ aff.C, sq * aff.c0, sq * target))

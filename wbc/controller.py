@@ -64,7 +64,14 @@ import numpy as np
 
 from .checks import all_finite, checked_array
 from .compiler import CompiledStack, jit_compiled
-from .errors import InfeasibleError, NonFiniteError, ShapeError, UnknownNameError, WbcError
+from .errors import (
+    InfeasibleError,
+    InvalidValueError,
+    NonFiniteError,
+    ShapeError,
+    UnknownNameError,
+    WbcError,
+)
 from .qp import Status
 from .solution import Solution
 from .stack import Stack
@@ -228,7 +235,7 @@ class Controller:
     def dt(self, value: float) -> None:
         value = float(value)
         if not np.isfinite(value) or value <= 0:
-            raise WbcError(f"dt must be a finite number > 0, got {value!r}")
+            raise InvalidValueError(f"dt must be a finite number > 0, got {value!r}")
         self._dt_value = value
         if self._dt is not None:
             self._dt[0] = value

@@ -19,6 +19,11 @@ class BoundsOrderError(WbcError, ValueError):
     """A lower bound exceeds its upper bound."""
 
 
+class InvalidValueError(WbcError, ValueError):
+    """A number is outside its domain: a negative weight, gain or damping, an indefinite
+    metric or mobility, a non-positive period."""
+
+
 class NonAffineError(WbcError, ValueError):
     """A task expression is not affine in the decision vector."""
 

@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 
 from .checks import check_finite, checked_array
-from .errors import ShapeError, WbcError
+from .errors import InvalidValueError, ShapeError, WbcError
 from .terms import Cost, Inequality, Task, Term, VariableBounds
 from .variables import Variables
 
@@ -106,7 +106,7 @@ class Stack:
         per_level = damping if isinstance(damping, Mapping) else {}
         for rho in [*per_level.values()] if per_level else [damping]:
             if not np.isfinite(rho) or rho < 0:
-                raise WbcError(f"damping must be a finite number >= 0, got {rho!r}")
+                raise InvalidValueError(f"damping must be a finite number >= 0, got {rho!r}")
         self._damping = {int(k): float(v) for k, v in per_level.items()}
         self._default_damping = 0.0 if per_level else float(damping)
         if metric is not None and mobility is not None:
@@ -195,7 +195,7 @@ class Stack:
             raise WbcError(f"expected a wbc task, got {type(task).__name__}")
         if isinstance(weight, (int, float, np.floating)):
             if not np.isfinite(weight) or weight < 0:
-                raise WbcError(f"weight must be a finite number >= 0, got {weight!r}")
+                raise InvalidValueError(f"weight must be a finite number >= 0, got {weight!r}")
         name = task.name or f"{type(task).__name__.lower()}{len(self._names)}"
         if name in self._names:
             raise WbcError(f"a task named {name!r} is already in the stack")
@@ -306,7 +306,7 @@ def _check_psd(W: np.ndarray, n: int, what: str) -> None:
         raise ShapeError(f"{what} must be ({n},) or ({n}, {n}), got {W.shape}")
     check_finite(W, what)
     if not np.allclose(W, W.T, atol=1e-12):
-        raise WbcError(f"{what} must be symmetric")
+        raise InvalidValueError(f"{what} must be symmetric")
     if np.linalg.eigvalsh(W).min() < -1e-12 * max(1.0, np.abs(W).max()):
-        raise WbcError(f"{what} must be positive semi-definite")
+        raise InvalidValueError(f"{what} must be positive semi-definite")
 
