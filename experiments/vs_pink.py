@@ -43,6 +43,7 @@ import argparse
 import gc
 import json
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -277,7 +278,9 @@ def main(argv: list[str] | None = None) -> int:
         if backend in skipped:
             continue
         try:
-            results[backend] = run_backend(backend, args.ticks, args.jit)
+            with warnings.catch_warnings():  # pink passes dense matrices to sparse solvers
+                warnings.simplefilter("ignore", qpsolvers.warnings.SparseConversionWarning)
+                results[backend] = run_backend(backend, args.ticks, args.jit)
         except Exception as err:  # one broken backend must not hide the others' results
             errors[backend] = f"{type(err).__name__}: {err}"
     machine = describe_machine()
