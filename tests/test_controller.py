@@ -101,7 +101,8 @@ def test_fallback_raise(robot):
 
 
 def test_references_keys_and_errors(robot):
-    ctrl = wbc.Controller(robot, panda_stack(robot), backend=BACKEND, dt=DT)
+    ctrl = wbc.Controller(robot, panda_stack(robot), backend=BACKEND, dt=DT,
+                          kinematics="numeric")
     assert {"ee", "ee.target", "posture", "qlim.upper", "vlim.lower"} <= set(
         ctrl.reference_names)
     assert set(ctrl.model_parameters) == {"q", "dt", "pose[ee]", "J[ee]"}
@@ -202,9 +203,11 @@ def test_mobile_manipulator_closed_loop():
 def test_compiled_kinematics_give_the_same_commands(robot):
     target = robot.frame_pose(Q0, "ee").copy()
     target[:3, 3] += [0.1, -0.1, 0.05]
-    numeric = wbc.Controller(robot, panda_stack(robot), backend=BACKEND, dt=DT)
+    numeric = wbc.Controller(robot, panda_stack(robot), backend=BACKEND, dt=DT,
+                             kinematics="numeric")
     compiled = wbc.Controller(robot, panda_stack(robot), backend=BACKEND, dt=DT,
                               kinematics="compiled")
+    assert numeric.kinematics == "numeric" and "pose[ee]" in numeric.workspace.parameter_names
     assert "pose[ee]" not in compiled.workspace.parameter_names
     assert set(compiled.model_parameters) == {"dt", "q"}
     q = Q0.copy()
@@ -221,3 +224,17 @@ def test_compiled_kinematics_give_the_same_commands(robot):
     with pytest.raises(wbc.WbcError, match="symbolic_frame"):
         wbc.Controller(NoSymbols(), panda_stack(robot), backend=BACKEND,
                        kinematics="compiled")
+    # the default takes the compiled path when the robot offers it, the getters otherwise
+    assert wbc.Controller(robot, panda_stack(robot), backend=BACKEND).kinematics == "compiled"
+
+    class Unsupported:  # the Panda, but its symbolic_frame refuses the model's joints
+        def __getattr__(self, name):
+            return getattr(robot, name)
+
+        def symbolic_frame(self, frame):
+            raise wbc.WbcError("symbolic kinematics support 1-DoF joints only")
+
+    auto = wbc.Controller(Unsupported(), panda_stack(robot), backend=BACKEND, dt=DT)
+    assert auto.kinematics == "numeric" and "J[ee]" in auto.model_parameters
+    np.testing.assert_allclose(auto.step(Q0, ee=target), numeric.step(Q0, ee=target),
+                               atol=1e-12)

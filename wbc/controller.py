@@ -114,12 +114,15 @@ class Controller:
             of the levels above it — every hard constraint and higher task still holds — and
             ``solution.fallback`` is ``"partial"``; only ``"raise"`` raises then too.
         warm_start: warm-start every QP from its previous solution.
-        kinematics: ``"numeric"`` (default) — frame poses and Jacobians come from the robot's
-            getters every tick; ``"compiled"`` — they are computed *inside* the compiled level
+        kinematics: ``"numeric"`` — frame poses and Jacobians come from the robot's getters
+            every tick; ``"compiled"`` — they are computed *inside* the compiled level
             functions from parameter ``"q"``, with the robot's ``symbolic_frame(frame)``
             (``q -> (pose, J)`` as a CasADi function): the tick then calls no kinematics at
-            all unless a drift ``"Jdot_v[...]"`` is used. Those parameters then no longer
-            exist in the workspace. Best with ``jit=True``.
+            all unless a drift ``"Jdot_v[...]"`` is used, and those parameters no longer
+            exist in the workspace (same values to round-off, a ≈ 35 µs shorter tick on the
+            catalogue robots); ``"auto"`` (default) — compiled when the robot offers
+            ``symbolic_frame`` for the stack's frames, else numeric. ``self.kinematics``
+            holds the choice made.
         jit: compile the level functions to C with CasADi's JIT (needs a C compiler, costs
             about half a second per level at construction; evaluation drops from ≈ 8 µs to
             ≈ 0.6 µs for a Panda pose + posture level). Without a compiler: a warning and the
@@ -148,7 +151,7 @@ class Controller:
 
     def __init__(self, robot, stack: Stack, backend: BackendSpec = "daqp",
                  profile: str = "default", dt: float = 0.01, fallback: str = "hold",
-                 warm_start: bool = True, kinematics: str = "numeric", jit: bool = False,
+                 warm_start: bool = True, kinematics: str = "auto", jit: bool = False,
                  **options) -> None:
         if fallback not in FALLBACKS:
             raise WbcError(f"unknown fallback {fallback!r}; use one of {list(FALLBACKS)}")
@@ -157,10 +160,19 @@ class Controller:
         self.fallback = fallback
         self.nq, self.nv = int(robot.nq), int(robot.nv)
         self.compiled = stack.compile()
+        if kinematics not in ("auto", "compiled", "numeric"):
+            raise WbcError(f"kinematics must be 'auto', 'compiled' or 'numeric', got "
+                           f"{kinematics!r}")
         if kinematics == "compiled":
             self.compiled = compiled_kinematics(self.compiled, robot)
-        elif kinematics != "numeric":
-            raise WbcError(f"kinematics must be 'numeric' or 'compiled', got {kinematics!r}")
+        elif kinematics == "auto":
+            kinematics = "numeric"
+            if hasattr(robot, "symbolic_frame"):
+                try:
+                    self.compiled = compiled_kinematics(self.compiled, robot)
+                    kinematics = "compiled"
+                except WbcError:  # joints the symbolic model does not cover: the getters
+                    pass
         self.kinematics = kinematics
         if jit:
             self.compiled = jit_compiled(self.compiled)
