@@ -67,7 +67,8 @@ class Stack:
         min_norm: add a final level minimising ``xᵀ W x`` under everything above, which makes
             the answer unique when the levels leave freedom. Default: on when the last level
             is undamped.
-        rank_tol: relative singular-value tolerance of the frozen rows' rank compression.
+        rank_tol: relative tolerance of the frozen rows' rank compression (pivots of a
+            rank-revealing QR) and of a scaling level's task rows (singular values).
         freeze_tol: frozen rows hold ``|a x − a x*| <= freeze_tol·(1 + |a x*|)`` rather than an
             exact equality. At a vertex (a saturated optimum, as after a scaling LP) the exact
             equalities and the active bounds meet in one point, which solvers can miss by
