@@ -155,3 +155,22 @@ def test_saturating_three_level_loop_stays_within_bounds(backend, monkeypatch):
         q = robot.integrate(q, v, solver_timing.DT)
     print(f"{backend}: {partial} partial ticks of {TICKS}")
     assert partial <= MAX_PARTIAL[backend]
+
+
+def test_a_level_determined_by_the_levels_above_is_not_solved():
+    """Level 0 has rank n: level 1's feasible set is level 0's optimum, so no solver runs for
+    it (a failing backend there is never called) and its result is that point."""
+    rng = np.random.default_rng(3)
+    n = 4
+    stack = wbc.Stack(wbc.Variables(x=n), damping={0: 0.1})
+    stack.add(LinearTask(rng.standard_normal((n, n)), rng.standard_normal(n), name="full"),
+              priority=0)
+    stack.add(LinearTask(np.eye(n), rng.standard_normal(n), name="posture"), priority=1)
+    ws = stack.workspace(_backends(lambda: make_backend("daqp", "tight"), _Failing, _Failing))
+    solution = ws.solve()
+    assert solution.ok, solution.message
+    first, second = solution.levels[0], solution.levels[1]
+    assert second.frozen_rank == n and second.iterations == 0
+    np.testing.assert_array_equal(second.x, first.x)
+    np.testing.assert_array_equal(solution.x, first.x)
+    assert [label for label, _, _ in ws.last_qps()] == [first.label]
