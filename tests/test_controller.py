@@ -9,7 +9,15 @@ import pytest
 
 import wbc
 from wbc.robots.fixed_base import load_panda
-from wbc.tasks import ConfigurationLimit, FrameTask, PostureTask, VelocityLimit
+from wbc.tasks import (
+    Bounds,
+    ConfigurationLimit,
+    FrameTask,
+    LinearConstraint,
+    LinearTask,
+    PostureTask,
+    VelocityLimit,
+)
 
 DT = 0.01
 BACKEND = "daqp"
@@ -68,7 +76,7 @@ def infeasible_state(robot):
     return q
 
 
-@pytest.mark.parametrize("policy", ["hold", "last"])
+@pytest.mark.parametrize("policy", ["hold", "last", "decelerate"])
 def test_fallback_on_an_infeasible_tick(robot, policy):
     ctrl = wbc.Controller(robot, panda_stack(robot, limit_gain=1.0), backend=BACKEND, dt=DT,
                           fallback=policy)
@@ -82,11 +90,30 @@ def test_fallback_on_an_infeasible_tick(robot, policy):
     assert solution.status is not wbc.Status.SOLVED
     assert solution.fallback == policy
     assert f"fallback {policy!r}" in solution.message
-    np.testing.assert_array_equal(command, first if policy == "last" else 0.0)
+    lower, upper = ctrl.workspace.variable_bounds()
+    assert np.any(lower > upper)  # inconsistent bounds: "decelerate" cannot clip into them
+    expected = {"hold": 0.0, "last": first, "decelerate": 0.5 * first}[policy]
+    np.testing.assert_array_equal(command, expected)
     assert np.isfinite(command).all()
     # back to a feasible state: normal operation resumes
     ctrl.step(Q0)
     assert ctrl.last_solution.ok and ctrl.last_solution.fallback is None
+
+
+def test_decelerate_stays_within_consistent_bounds(robot):
+    """The halved previous command is clipped into this tick's bounds when the failure lies
+    elsewhere (here an unreachable hard constraint)."""
+    stack = wbc.Stack(wbc.Variables(v=robot.nv), damping=1e-3)
+    stack.add(LinearTask(np.eye(robot.nv), np.full(robot.nv, 0.9), name="track"))
+    stack.constrain(Bounds(-1.0, 1.0, name="box"))
+    stack.constrain(LinearConstraint(np.ones((1, robot.nv)), -10.0, 10.0, name="sum"))
+    ctrl = wbc.Controller(robot, stack, backend=BACKEND, dt=DT, fallback="decelerate")
+    first = ctrl.step(Q0).copy()
+    np.testing.assert_allclose(first, 0.9, atol=1e-3)
+    box = np.full(robot.nv, 0.2)
+    command = ctrl.step(Q0, **{"box.lower": -box, "box.upper": box, "sum.lower": 5.0})
+    assert not ctrl.last_solution.ok and ctrl.last_solution.fallback == "decelerate"
+    np.testing.assert_array_equal(command, 0.2)  # 0.45 clipped to the new upper bound
 
 
 def test_fallback_raise(robot):

@@ -77,7 +77,8 @@ from .solution import Solution
 from .stack import Stack
 from .workspace import BackendSpec, Workspace
 
-FALLBACKS = ("hold", "last", "raise")
+FALLBACKS = ("hold", "last", "decelerate", "raise")
+DECELERATION = 0.5  # "decelerate": the previous command's share kept per failed tick
 _FRAME_QUANTITY = re.compile(r"^(pose|J|Jdot_v)\[(.+)\]$")
 
 
@@ -109,7 +110,10 @@ class Controller:
         dt: control period [s], written into parameter ``"dt"`` every tick.
         fallback: what to command when a solve fails (the solution still says why):
             ``"hold"`` — zeros (for a velocity-level stack: stop); ``"last"`` — the previous
-            command (zeros if none); ``"raise"`` — raise :class:`~wbc.InfeasibleError`. When
+            command (zeros if none); ``"decelerate"`` — the previous command times
+            ``DECELERATION`` (0.5), clipped into this tick's variable bounds when they are
+            consistent (for velocity-level stacks: a geometric stop that respects the limits);
+            ``"raise"`` — raise :class:`~wbc.InfeasibleError`. When
             only a lower priority failed (``solution.partial``), the command is the solution
             of the levels above it — every hard constraint and higher task still holds — and
             ``solution.fallback`` is ``"partial"``; only ``"raise"`` raises then too.
@@ -336,6 +340,12 @@ class Controller:
         if policy == "last" and self.last_command is not None:
             command = self.last_command.copy()
             what = "previous command repeated"
+        elif policy == "decelerate" and self.last_command is not None:
+            command = DECELERATION * self.last_command
+            lower, upper = self.workspace.variable_bounds()
+            if np.all(lower <= upper):
+                np.clip(command, lower, upper, out=command)
+            what = f"previous command × {DECELERATION}, within the bounds"
         else:
             command = np.zeros(self.compiled.n)
             what = "zero command (hold)"

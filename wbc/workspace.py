@@ -173,6 +173,12 @@ class Workspace:
             view[...] = checked_array(value, shape, f"parameter {name!r}", allow_inf)
         return self
 
+    def variable_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lower, upper)`` bounds of the decision vector ``x`` (hard bounds and pins) as
+        evaluated by the last :meth:`solve` — live buffers, copy to keep."""
+        first = self._blocks[0]
+        return first.lb_x, first.ub_x
+
     def last_qps(self) -> list[tuple]:
         """For diagnostics and tests: per QP of the last tick, ``(label, (H, g, A, lA, uA, lb,
         ub), QPResult)`` — the exact arrays the backend saw (live buffers, copy to keep)."""
