@@ -16,7 +16,9 @@ The protocol (shared with the mobile manipulators of :mod:`wbc.robots`; see
 * optionally ``symbolic_frame(frame) -> casadi.Function``: ``q -> (pose (4, 4), J (6, nv))``,
   the same quantities as CasADi expressions, so that a controller built with
   ``kinematics="compiled"`` computes them inside its compiled (JIT) level functions instead of
-  calling pinocchio every tick.
+  calling pinocchio every tick;
+* optionally ``symbolic_drift(frame) -> casadi.Function``: ``(q, v) -> J̇ v (6, 1)``, the
+  CasADi counterpart of ``frame_drift`` (world-aligned axes).
 
 With ``q=None`` a getter reads the last :meth:`~FixedBaseRobot.update` (the controller's path:
 one update per tick, then allocation-free getters writing into ``out``); with a ``q`` it
@@ -27,7 +29,7 @@ only); there are no base coordinates.
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
@@ -92,6 +94,7 @@ class FixedBaseRobot:
         self.n_arm = self.nv  # no base coordinates
         self._zero_v = np.zeros(self.nv)
         self._symbolic: dict[int, ca.Function] = {}
+        self._symbolic_drift: dict[int, ca.Function] = {}
 
     # ------------------------------------------------------------------ names
     @property
@@ -194,6 +197,20 @@ class FixedBaseRobot:
             self._symbolic[fid] = symbolic_frame_kinematics(self.model, fid)
         return self._symbolic[fid]
 
+    def symbolic_drift(self, frame: str = "ee") -> ca.Function:
+        """``(q, v) -> drift``: :meth:`frame_drift` as a CasADi function (cached per frame).
+
+        ``drift`` ``(6, 1)`` is ``J̇ v`` in world-aligned axes, rows ``[linear [m/s²]; angular
+        [rad/s²]]``: the frame origin's classical acceleration at zero joint acceleration, for
+        ``q`` [rad or m] and joint rates ``v`` [rad/s or m/s]. An unknown ``frame`` raises
+        :class:`~wbc.UnknownNameError` as the numeric getters do.
+        """
+        fid = self._frame_id(frame)
+        if fid not in self._symbolic_drift:
+            # nq == nv and every joint is 1-DoF: the configuration rate is v itself
+            self._symbolic_drift[fid] = symbolic_frame_drift(self.symbolic_frame(frame))
+        return self._symbolic_drift[fid]
+
     def __repr__(self) -> str:
         return f"FixedBaseRobot({self.name!r}, nq={self.nq}, nv={self.nv})"
 
@@ -256,6 +273,31 @@ def symbolic_frame_kinematics(model: pin.Model, frame_id: int) -> ca.Function:
     # (e.g. "base_link-base_fixed_joint")
     name = "_".join(["kinematics", *re.findall(r"[A-Za-z0-9]+", frame.name)])
     return ca.Function(name, [q], [pose, J], ["q"], ["pose", "J"])
+
+
+def symbolic_frame_drift(
+    kinematics: ca.Function,
+    configuration_rate: Callable[[ca.SX, ca.SX], ca.SX] | None = None,
+) -> ca.Function:
+    """CasADi function ``(q, v) -> J̇ v (6, 1)`` from a frame function ``q -> (pose, J)``.
+
+    ``J̇ v = d/dt (J(q) v)`` at constant ``v``, i.e. ``(∂(J v)/∂q) q̇`` (one forward-mode
+    directional derivative) with ``q̇ = configuration_rate(q, v)`` — ``v`` itself when ``None``
+    (``nq == nv``). Rows ``[linear [m/s²]; angular [rad/s²]]`` in the axes of ``J``'s rows.
+    Because the whole of ``J(q)`` is differentiated, a ``J`` that already carries a
+    configuration-dependent velocity map (``J = J_pin(q) S(q)`` of a mobile base) yields
+    ``J̇_pin q̇ + J_pin Ṡ v``, the map's rate included.
+    """
+    nq, nv = kinematics.size1_in(0), kinematics.size2_out(1)
+    q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
+    _, J = kinematics(q)  # SX call: the expressions are inlined, so AD sees through them
+    qdot = v if configuration_rate is None else configuration_rate(q, v)
+    if qdot.shape != (nq, 1):
+        raise ShapeError(f"configuration rate must have shape ({nq}, 1), got {qdot.shape}")
+    drift = ca.jtimes(J @ v, q, qdot)
+    # same identifier scheme as the frame function ("kinematics_<frame>" -> "drift_<frame>")
+    name = "drift" + kinematics.name().removeprefix("kinematics")
+    return ca.Function(name, [q, v], [drift], ["q", "v"], ["drift"])
 
 
 def load_panda(

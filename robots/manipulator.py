@@ -60,7 +60,8 @@ per-call allocation or conversion on the Python side::
 
 With ``Controller(..., kinematics="compiled")`` a tick needs no update at all:
 :meth:`MobileManipulator.symbolic_frame` gives the pose and the ``"world"`` Jacobian as a CasADi
-function of ``q``, evaluated inside the compiled level functions.
+function of ``q``, evaluated inside the compiled level functions
+(:meth:`MobileManipulator.symbolic_drift` gives the ``"world"`` drift of ``(q, v)``).
 
 A :class:`MobileManipulator` holds one pinocchio ``Data``: it is not thread-safe; use
 :meth:`MobileManipulator.clone` (shares the model, owns new buffers) per thread.
@@ -80,7 +81,7 @@ import pinocchio as pin
 from wbc.errors import NonFiniteError, ShapeError, UnknownNameError
 
 from .arms import Arm, arm_from_model, arm_from_urdf
-from .fixed_base import symbolic_frame_kinematics
+from .fixed_base import symbolic_frame_drift, symbolic_frame_kinematics
 from .limits import Limits
 from .planar_base import HOLONOMIC_MAP, UNICYCLE_MAP, PlanarBase
 
@@ -186,6 +187,7 @@ class MobileManipulator:
         self._ancestors = self._arm_ancestor_mask()
         # frame id -> symbolic_frame function; immutable, so shared by clones
         self._symbolic: dict[int, ca.Function] = {}
+        self._symbolic_drift: dict[int, ca.Function] = {}  # symbolic_drift's, likewise
         self._allocate()
 
     # ------------------------------------------------------------------ construction
@@ -518,12 +520,40 @@ class MobileManipulator:
         joint_space = symbolic_frame_kinematics(self.model, fid)
         q = ca.SX.sym("q", self.nq)
         pose, J_pin = joint_space(q)
-        c, s = ca.cos(q[2]), ca.sin(q[2])
-        rz = ca.SX(3, 3)  # structural zeros keep the products below lean
-        rz[0, 0], rz[0, 1], rz[1, 0], rz[1, 1], rz[2, 2] = c, -s, s, c, 1
-        H = rz @ ca.sparsify(ca.DM(self.base.body_map))
-        J = ca.horzcat(J_pin[:, :3] @ H, J_pin[:, 3:])
+        J = ca.horzcat(J_pin[:, :3] @ self._symbolic_pose_rate_matrix(q[2]), J_pin[:, 3:])
         return ca.Function(joint_space.name(), [q], [pose, J], ["q"], ["pose", "J"])
+
+    def _symbolic_pose_rate_matrix(self, theta: ca.SX) -> ca.SX:
+        """``H(θ) = Rz(θ) B`` (3 × base.nv) as a CasADi expression (cf.
+        :meth:`PlanarBase.pose_rate_matrix`)."""
+        c, s = ca.cos(theta), ca.sin(theta)
+        rz = ca.SX(3, 3)  # structural zeros keep the products with it lean
+        rz[0, 0], rz[0, 1], rz[1, 0], rz[1, 1], rz[2, 2] = c, -s, s, c, 1
+        return rz @ ca.sparsify(ca.DM(self.base.body_map))
+
+    def _symbolic_configuration_rate(self, q: ca.SX, v: ca.SX) -> ca.SX:
+        """``q̇ = S(q) v``: base pose rates ``H(θ) v_b`` [m/s, m/s, rad/s], arm rates as is."""
+        nb = self.nv_base
+        return ca.vertcat(self._symbolic_pose_rate_matrix(q[2]) @ v[:nb], v[nb:])
+
+    def symbolic_drift(self, frame: str | int = "ee") -> ca.Function:
+        """``(q, v) -> drift`` as a CasADi function (cached per frame): :meth:`frame_drift`
+        with ``reference="world"``.
+
+        ``drift`` (6 × 1) is ``J̇ v = d/dt (J v)`` at ``v̇ = 0`` for the ``J = J_pin(q) S(q)``
+        of :meth:`symbolic_frame`, rows ``[linear [m/s²]; angular [rad/s²]]`` in world axes:
+        ``J̇_pin q̇ + J_pin Ṡ v`` with ``q̇ = S(q) v``, the base map's rotation rate included
+        exactly as in the numeric getter. ``frame`` is anything :meth:`frame_id` accepts; an
+        unknown one raises :class:`~wbc.UnknownNameError`.
+        """
+        fid = self.frame_id(frame)
+        function = self._symbolic_drift.get(fid)
+        if function is None:
+            # differentiating J_pin S (not J_pin alone) along q̇ = S v gives the Ṡ v term
+            function = self._symbolic_drift[fid] = symbolic_frame_drift(
+                self.symbolic_frame(fid), self._symbolic_configuration_rate
+            )
+        return function
 
     def _rotate_to_base(self, rows: np.ndarray) -> None:
         """Apply ``blockdiag(Rᵀ, Rᵀ)``, ``R = Rz(θ)``, in place to 6-row arrays."""
