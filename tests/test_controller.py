@@ -171,13 +171,17 @@ def test_model_stage_fills_drift_and_velocity(robot):
 
     stack = wbc.Stack(wbc.Variables(a=robot.nv), damping=1e-3)
     stack.add(Accel(), priority=0)
-    ctrl = wbc.Controller(robot, stack, backend=BACKEND, dt=DT)
+    ctrl = wbc.Controller(robot, stack, backend=BACKEND, dt=DT, kinematics="numeric")
     rng = np.random.default_rng(0)
     q, v = Q0 + 0.1 * rng.standard_normal(7), rng.standard_normal(7)
-    ctrl.step(q, v)
+    a = ctrl.step(q, v).copy()
     np.testing.assert_allclose(ctrl.workspace.view("Jdot_v[ee]").ravel(),
                                robot.frame_drift(q, v, "ee"), atol=1e-12)
     np.testing.assert_array_equal(ctrl.workspace.view("v").ravel(), v)
+    # compiled kinematics: the drift comes from robot.symbolic_drift inside the level function
+    compiled = wbc.Controller(robot, stack, backend=BACKEND, dt=DT, kinematics="compiled")
+    assert set(compiled.workspace.parameter_names) == {"q", "v"}
+    np.testing.assert_allclose(compiled.step(q, v), a, atol=1e-10)
     ctrl.step(q)  # no velocity given: zeros
     assert not ctrl.workspace.view("v").any()
 

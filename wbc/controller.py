@@ -39,7 +39,8 @@ Robot protocol (duck-typed; the core imports no robot)
 * optionally ``robot.has_frame(name)`` and ``robot.frame_names``, for early, clear errors;
 * optionally ``robot.symbolic_frame(frame) -> casadi.Function`` (``q -> (pose, J)``), for
   ``Controller(..., kinematics="compiled")``: poses and Jacobians are then part of the compiled
-  level functions (JIT-able) and the tick calls no kinematics at all.
+  level functions (JIT-able); with ``robot.symbolic_drift(frame) -> casadi.Function`` (``(q, v)
+  -> J̇v``) the drifts are too, and the tick calls no kinematics at all.
 
 :class:`wbc.robots.fixed_base.FixedBaseRobot` and the mobile manipulators of
 :mod:`wbc.robots` implement it.
@@ -121,9 +122,10 @@ class Controller:
         kinematics: ``"numeric"`` — frame poses and Jacobians come from the robot's getters
             every tick; ``"compiled"`` — they are computed *inside* the compiled level
             functions from parameter ``"q"``, with the robot's ``symbolic_frame(frame)``
-            (``q -> (pose, J)`` as a CasADi function): the tick then calls no kinematics at
-            all unless a drift ``"Jdot_v[...]"`` is used, and those parameters no longer
-            exist in the workspace (same values to round-off, a ≈ 35 µs shorter tick on the
+            (``q -> (pose, J)`` as a CasADi function) and, for drifts ``"Jdot_v[...]"``, its
+            ``symbolic_drift(frame)`` (``(q, v) -> J̇v``; without it drifts stay numeric): the
+            tick then calls no kinematics at all, and those parameters no longer exist in the
+            workspace (same values to round-off, a ≈ 35 µs shorter tick on the
             catalogue robots); ``"auto"`` (default) — compiled when the robot offers
             ``symbolic_frame`` for the stack's frames, else numeric. ``self.kinematics``
             holds the choice made.
@@ -361,40 +363,55 @@ class Controller:
 
 def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
     """A copy of ``compiled`` whose level functions compute ``"pose[<frame>]"`` and
-    ``"J[<frame>]"`` from parameter ``"q"`` with ``robot.symbolic_frame(frame)`` (those two
-    parameters leave the layout; ``"q"`` is appended if the stack had none)."""
+    ``"J[<frame>]"`` from parameter ``"q"`` with ``robot.symbolic_frame(frame)``, and
+    ``"Jdot_v[<frame>]"`` from ``"q"`` and ``"v"`` with ``robot.symbolic_drift(frame)`` when the
+    robot has it. Those parameters leave the layout; ``"q"`` and ``"v"`` are appended if the
+    stack needs them and had none."""
     symbolic = getattr(robot, "symbolic_frame", None)
     if symbolic is None:
         raise WbcError(f"kinematics='compiled' needs robot.symbolic_frame(frame) -> "
                        f"casadi.Function(q -> (pose, J)); {type(robot).__name__} has none")
-    params = dict(compiled.parameters)
-    n_p, nq = compiled.defaults.shape[0], int(robot.nq)
-    defaults = compiled.defaults
-    if "q" not in params:
-        params["q"] = (n_p, (nq, 1), False)
-        defaults = np.concatenate([defaults, np.full(nq, np.nan)])
-    p = ca.SX.sym("p", defaults.shape[0])
-    q_offset = params["q"][0]
-    q = p[q_offset:q_offset + nq]
-    entries = [p[i] for i in range(n_p)]
-    replaced = False
-    for name, (offset, shape, _) in compiled.parameters.items():
+    drift = getattr(robot, "symbolic_drift", None)
+    replaced = {}  # parameter name -> (kind, frame)
+    for name in compiled.parameters:
         match = _FRAME_QUANTITY.match(name)
-        if match is None or match.group(1) == "Jdot_v":
-            continue
-        kind, frame = match.groups()
-        pose, J = symbolic(frame)(q)
-        value = pose if kind == "pose" else J
+        if match is not None and (match.group(1) != "Jdot_v" or drift is not None):
+            replaced[name] = match.groups()
+    if not replaced:
+        return compiled
+    params = dict(compiled.parameters)
+    n_p = compiled.defaults.shape[0]
+    appended = []
+    for name, size, needed in (("q", int(robot.nq), True),
+                               ("v", int(robot.nv), any(k == "Jdot_v" for k, _ in
+                                                        replaced.values()))):
+        if needed and name not in params:
+            params[name] = (n_p + sum(appended), (size, 1), False)
+            appended.append(size)
+    defaults = np.concatenate([compiled.defaults, np.full(sum(appended), np.nan)])
+    p = ca.SX.sym("p", defaults.shape[0])
+
+    def column(name: str) -> ca.SX:
+        offset, (rows, _), _ = params[name]
+        return p[offset:offset + rows]
+
+    q = column("q")
+    entries = [p[i] for i in range(n_p)]
+    for name, (kind, frame) in replaced.items():
+        offset, shape, _ = params.pop(name)
+        if kind == "Jdot_v":
+            value = drift(frame)(q, column("v"))
+            source = f"robot.symbolic_drift({frame!r})"
+        else:
+            pose, J = symbolic(frame)(q)
+            value = pose if kind == "pose" else J
+            source = f"robot.symbolic_frame({frame!r})"
         if value.shape != shape:
-            raise ShapeError(f"robot.symbolic_frame({frame!r}) gives {kind} of shape "
-                             f"{value.shape}, the stack declares {shape}")
+            raise ShapeError(f"{source} gives {kind} of shape {value.shape}, the stack "
+                             f"declares {shape}")
         for c in range(shape[1]):
             for r in range(shape[0]):
                 entries[offset + c * shape[0] + r] = value[r, c]
-        del params[name]
-        replaced = True
-    if not replaced:
-        return compiled
     p_in = ca.vertcat(*entries)
     blocks = []
     for block in compiled.blocks:
