@@ -1,6 +1,8 @@
 """Conversions of the QP of :mod:`wbc.qp` into the forms solvers want.
 
 - :class:`StackedConstraints` — bounds as extra rows: ``l <= C x <= u`` with ``C = [A; I]``.
+- :class:`RowTable` — the same rows in one row-major table ``[C | l | u]``, from which a single
+  gather picks rows of ``C`` together with one side each, and a cheap key of its finite sides.
 - :class:`OneSidedRows` — the finite sides only, as ``G x <= h`` with the equalities first, and
   the map of the solver's multipliers back to the sign convention of :mod:`wbc.qp`.
 - :class:`CscPattern` — a fixed sparse (CSC) pattern over a dense matrix, explicit zeros
@@ -106,6 +108,55 @@ class StackedConstraints:
         upper = np.abs(np.minimum(self.u - Cx, 1e6)) @ np.maximum(lam, 0.0)
         lower = np.abs(np.minimum(Cx - self.l, 1e6)) @ np.maximum(-lam, 0.0)
         return float(upper + lower)
+
+
+class RowTable:
+    """All constraints as rows ``l <= C x <= u`` (``C = [A; I]``) in one row-major table whose row
+    ``i`` is ``[C_i, l_i, u_i]``, so that one gather (``flat.take``) picks any rows of ``C`` with
+    one side each. The identity rows are written once; ``l`` and ``u`` are (strided) views of
+    the table's last two columns.
+
+    Args:
+        n: number of variables.
+        m: number of rows of ``A``.
+    """
+
+    def __init__(self, n: int, m: int):
+        self.n, self.m = n, m
+        self.data = np.zeros((m + n, n + 2))
+        self.data[m:, :n] = np.eye(n)
+        self.flat = self.data.reshape(-1)  # a view: flat index of (i, j) is i * (n + 2) + j
+        self.l = self.data[:, n]
+        self.u = self.data[:, n + 1]
+        self._mask = np.empty((3, m + n), dtype=bool)
+        self._has_l, self._has_u, self._equal = self._mask  # views, written by pattern()
+        self._minus_inf, self._plus_inf = np.array(-np.inf), np.array(np.inf)
+
+    def load(self, A, lA, uA, lb, ub) -> None:
+        """Copy new data into the table (any memory order of ``A``)."""
+        m, n = self.m, self.n
+        if m:  # bounds only: spare three empty copies (a numpy call each)
+            self.data[:m, :n] = A
+            self.l[:m] = lA
+            self.u[:m] = uA
+        self.l[m:] = lb
+        self.u[m:] = ub
+
+    def copy(self) -> RowTable:
+        """An independent table with the same contents."""
+        other = RowTable(self.n, self.m)
+        other.data[...] = self.data
+        return other
+
+    def pattern(self) -> bytes:
+        """A key of the finite sides and the equal sides of ``(l, u)``, written into a buffer
+        allocated once (three ufunc calls: this runs every tick). Equal keys mean equal
+        :class:`OneSidedRows`, whose equalities are the rows with ``-inf < l == u``.
+        """
+        np.greater(self.l, self._minus_inf, out=self._has_l)
+        np.less(self.u, self._plus_inf, out=self._has_u)
+        np.equal(self.l, self.u, out=self._equal)
+        return self._mask.tobytes()
 
 
 class OneSidedRows:
