@@ -11,12 +11,13 @@ For each catalogue robot and each stack
 a closed loop tracking a circle with the end effector is run once with the reference backend
 (clarabel, tight profile). Every backend then replays exactly that state sequence
 (``≥ 1000`` ticks after a warm-up), so that all backends solve the same problems with realistic
-warm starts; per tick it records the wall time of ``Controller.step`` and its split into
-kinematics (model stage) / assembly / solve, whether it succeeded (or only partly: a lower level
-failed and the command is the levels above it), and the largest difference of its command from
-the reference's. Controllers use ``kinematics="compiled"`` by default (poses and Jacobians
-inside the compiled functions; ``--kinematics numeric`` times pinocchio's getters instead) and
-the CasADi virtual machine (``--jit`` compiles to C).
+warm starts; the backends take turns at every state (interleaved, in a rotating order), so
+machine noise hits them alike. Per tick it records the wall time of ``Controller.step`` and its
+split into kinematics (model stage) / assembly / solve, whether it succeeded (or only partly: a
+lower level failed and the command is the levels above it), and the largest difference of its
+command from the reference's. Controllers use ``kinematics="compiled"`` by default (poses and
+Jacobians inside the compiled functions; ``--kinematics numeric`` times pinocchio's getters
+instead) and the CasADi virtual machine (``--jit`` compiles to C).
 
 The scaling study times the ``one_level`` stack on fixed-base serial chains of 7 to 100
 joints. Outputs, in ``--out``: ``solver_timing.json`` (raw per-tick samples [µs] and the
@@ -135,33 +136,41 @@ def reference_run(robot, kind: str, ticks: int, q0: np.ndarray | None = None) ->
     return {"states": states, "targets": targets, "commands": commands}
 
 
-def replay(robot, kind: str, backend: str, run: dict, warmup: int,
+def replay(robot, kind: str, backends: list[str], run: dict, warmup: int,
            kinematics: str = "compiled", jit: bool = False) -> dict:
-    """Time ``backend`` on the reference state sequence; raw samples in µs. ``kinematics`` and
-    ``jit`` are the :class:`wbc.Controller` options."""
-    ctrl = wbc.Controller(robot, build_stack(robot, kind), backend=backend, dt=DT,
-                          kinematics=kinematics, jit=jit)
-    samples = {"tick": [], "kinematics": [], "assembly": [], "solve": []}
-    ok, partial, diff = [], [], []
+    """Time every backend on the reference state sequence, interleaved: at each state every
+    backend's controller ticks once, in an order rotating from state to state, so that machine
+    noise hits all backends alike. Returns ``{backend: result}`` with raw samples in µs.
+    ``kinematics`` and ``jit`` are the :class:`wbc.Controller` options."""
+    controllers = {b: wbc.Controller(robot, build_stack(robot, kind), backend=b, dt=DT,
+                                     kinematics=kinematics, jit=jit) for b in backends}
+    samples = {b: {"tick": [], "kinematics": [], "assembly": [], "solve": []} for b in backends}
+    ok = {b: [] for b in backends}
+    partial = {b: [] for b in backends}
+    diff = {b: [] for b in backends}
     for k, ((q, v), T) in enumerate(zip(run["states"], run["targets"], strict=True)):
         refs = _references(kind, T)
-        t0 = time.perf_counter()
-        cmd = ctrl.step(q, v, **refs)
-        elapsed = time.perf_counter() - t0
-        if k < warmup:
-            continue
-        sol = ctrl.last_solution
-        samples["tick"].append(elapsed * 1e6)
-        samples["kinematics"].append(sol.timings.model * 1e6)
-        samples["assembly"].append(sol.timings.assembly * 1e6)
-        samples["solve"].append(sol.timings.solve * 1e6)
-        ok.append(sol.ok)
-        partial.append(sol.partial)
-        diff.append(float(np.abs(cmd - run["commands"][k]).max()))
-    return {"samples": {key: np.round(val, 3).tolist() for key, val in samples.items()},
-            "success_rate": float(np.mean(ok)), "partial_rate": float(np.mean(partial)),
-            "max_abs_diff_vs_reference": float(max(diff)),
-            "stats": {key: _stats(val) for key, val in samples.items()}}
+        for i in range(len(backends)):
+            backend = backends[(k + i) % len(backends)]
+            ctrl = controllers[backend]
+            t0 = time.perf_counter()
+            cmd = ctrl.step(q, v, **refs)
+            elapsed = time.perf_counter() - t0
+            if k < warmup:
+                continue
+            sol, own = ctrl.last_solution, samples[backend]
+            own["tick"].append(elapsed * 1e6)
+            own["kinematics"].append(sol.timings.model * 1e6)
+            own["assembly"].append(sol.timings.assembly * 1e6)
+            own["solve"].append(sol.timings.solve * 1e6)
+            ok[backend].append(sol.ok)
+            partial[backend].append(sol.partial)
+            diff[backend].append(float(np.abs(cmd - run["commands"][k]).max()))
+    return {b: {"samples": {key: np.round(val, 3).tolist() for key, val in samples[b].items()},
+                "success_rate": float(np.mean(ok[b])), "partial_rate": float(np.mean(partial[b])),
+                "max_abs_diff_vs_reference": float(max(diff[b])),
+                "stats": {key: _stats(val) for key, val in samples[b].items()}}
+            for b in backends}
 
 
 def _stats(samples) -> dict:
@@ -200,19 +209,18 @@ def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, w
               "results": {}, "scaling": {}}
     combos = [(r, s) for r in robots for s in stacks]
     for i, (name, kind) in enumerate(combos, start=1):
+        log(f"[{i}/{len(combos)}] {name} / {kind} / {', '.join(backends)}")
         robot = wbc.robots.load(name)
         ref = reference_run(robot, kind, warmup + ticks)
-        for backend in backends:
-            log(f"[{i}/{len(combos)}] {name} / {kind} / {backend}")
-            report["results"].setdefault(name, {}).setdefault(kind, {})[backend] = replay(
-                robot, kind, backend, ref, warmup, kinematics, jit)
+        report["results"].setdefault(name, {})[kind] = replay(
+            robot, kind, backends, ref, warmup, kinematics, jit)
     for j, n in enumerate(scaling_joints, start=1):
+        log(f"[scaling {j}/{len(scaling_joints)}] {n} joints / {', '.join(backends)}")
         robot = serial_chain(n)
         # start bent (the straight chain is singular)
         ref = reference_run(robot, "one_level", warmup + scaling_ticks, np.full(n, 0.3))
-        for backend in backends:
-            log(f"[scaling {j}/{len(scaling_joints)}] {n} joints / {backend}")
-            result = replay(robot, "one_level", backend, ref, warmup, kinematics, jit)
+        for backend, result in replay(robot, "one_level", backends, ref, warmup, kinematics,
+                                      jit).items():
             report["scaling"].setdefault(backend, {})[str(n)] = {
                 "stats": result["stats"], "success_rate": result["success_rate"]}
     return report
