@@ -25,6 +25,7 @@ import numpy as np
 
 import wbc
 from wbc.experiments.machine import describe_machine
+from wbc.experiments.progress import report_progress
 from wbc.solvers import available_backends
 from wbc.tasks import Bounds, LinearTask
 
@@ -61,7 +62,8 @@ def _qp_of(ws: wbc.Workspace) -> tuple:
 
 def run(ticks: int = 1000, warmup: int = 50, backends: list[str] | None = None,
         cold: bool = True, jit: bool = True, progress=None) -> dict:
-    """Time every backend on the same tick sequence; returns a JSON-able report."""
+    """Time every backend on the same tick sequence; returns a JSON-able report.
+    ``progress(done, total, what)`` is called after each backend."""
     import qpsolvers
 
     names = backends or available_backends()
@@ -75,7 +77,7 @@ def run(ticks: int = 1000, warmup: int = 50, backends: list[str] | None = None,
             ref_x.append(reference.solve().x)
     report = {"machine": describe_machine(), "ticks": ticks, "jit": jit, "problem":
               f"{M_TASK}x{N_BASE + N_ARM} task + posture + damping + bounds", "backends": {}}
-    for name in names:
+    for done, name in enumerate(names, start=1):
         ws = stack.workspace(name, jit=jit)
         assembly, solve, errors, failures = [], [], [], 0
         for k, params in enumerate(seq):
@@ -108,7 +110,7 @@ def run(ticks: int = 1000, warmup: int = 50, backends: list[str] | None = None,
                 "median"]
         report["backends"][name] = entry
         if progress:
-            progress(name)
+            progress(done, len(names), name)
     return report
 
 
@@ -151,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.ticks < 1:
         parser.error("--ticks must be >= 1")
     report = run(args.ticks, backends=args.backends, jit=not args.no_jit,
-                 progress=lambda name: print(f"  done: {name}", flush=True))
+                 progress=report_progress)
     print(table(report))
     if args.out:
         args.out.mkdir(parents=True, exist_ok=True)

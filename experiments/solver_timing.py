@@ -37,6 +37,7 @@ import pinocchio as pin
 import wbc
 import wbc.robots
 from wbc.experiments.machine import describe_machine
+from wbc.experiments.progress import report_progress
 from wbc.robots.fixed_base import FixedBaseRobot
 from wbc.solvers import available_backends
 from wbc.tasks import Bounds, ConfigurationLimit, FrameTask, PostureTask, VelocityLimit
@@ -202,20 +203,22 @@ def serial_chain(n: int) -> FixedBaseRobot:
 # ----------------------------------------------------------------------------- study
 def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, warmup: int,
         scaling_ticks: int, scaling_joints: tuple[int, ...], kinematics: str = "compiled",
-        jit: bool = False, log=print) -> dict:
-    """The whole study; returns the JSON-able report."""
+        jit: bool = False, progress=None) -> dict:
+    """The whole study; returns the JSON-able report. ``progress(done, total, what)`` is called
+    after each robot × stack and each chain size."""
     report = {"machine": describe_machine(), "dt_s": DT, "ticks": ticks, "warmup": warmup,
               "kinematics": kinematics, "jit": jit, "reference": "/".join(REFERENCE),
               "results": {}, "scaling": {}}
     combos = [(r, s) for r in robots for s in stacks]
+    total = len(combos) + len(scaling_joints)
     for i, (name, kind) in enumerate(combos, start=1):
-        log(f"[{i}/{len(combos)}] {name} / {kind} / {', '.join(backends)}")
         robot = wbc.robots.load(name)
         ref = reference_run(robot, kind, warmup + ticks)
         report["results"].setdefault(name, {})[kind] = replay(
             robot, kind, backends, ref, warmup, kinematics, jit)
+        if progress:
+            progress(i, total, f"{name} / {kind}")
     for j, n in enumerate(scaling_joints, start=1):
-        log(f"[scaling {j}/{len(scaling_joints)}] {n} joints / {', '.join(backends)}")
         robot = serial_chain(n)
         # start bent (the straight chain is singular)
         ref = reference_run(robot, "one_level", warmup + scaling_ticks, np.full(n, 0.3))
@@ -223,6 +226,8 @@ def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, w
                                       jit).items():
             report["scaling"].setdefault(backend, {})[str(n)] = {
                 "stats": result["stats"], "success_rate": result["success_rate"]}
+        if progress:
+            progress(len(combos) + j, total, f"scaling: {n}-joint chain")
     return report
 
 
@@ -346,8 +351,7 @@ def main(argv: list[str] | None = None) -> int:
     if any(n < 2 for n in args.scaling_joints):
         parser.error("--scaling-joints sizes must be >= 2")
     report = run(robots, args.stacks, backends, args.ticks, args.warmup, args.scaling_ticks,
-                 tuple(args.scaling_joints), args.kinematics, args.jit,
-                 log=lambda msg: print(msg, flush=True))
+                 tuple(args.scaling_joints), args.kinematics, args.jit, report_progress)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "solver_timing.json").write_text(json.dumps(report))
     table = markdown(report)

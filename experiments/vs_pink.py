@@ -269,20 +269,21 @@ def main(argv: list[str] | None = None) -> int:
         print(SKIP_MESSAGE)
         return 0
     from wbc.experiments.machine import describe_machine
+    from wbc.experiments.progress import report_progress
     from wbc.solvers import available_backends
 
     ours, theirs = set(available_backends()), set(qpsolvers.available_solvers)
     skipped = [b for b in backends if b not in ours or b not in theirs]
     results, errors = {}, {}
-    for backend in backends:
-        if backend in skipped:
-            continue
+    runs = [b for b in backends if b not in skipped]
+    for done, backend in enumerate(runs, start=1):
         try:
             with warnings.catch_warnings():  # pink passes dense matrices to sparse solvers
                 warnings.simplefilter("ignore", qpsolvers.warnings.SparseConversionWarning)
                 results[backend] = run_backend(backend, args.ticks, args.jit)
         except Exception as err:  # one broken backend must not hide the others' results
             errors[backend] = f"{type(err).__name__}: {err}"
+        report_progress(done, len(runs), backend)
     machine = describe_machine()
     report = {"problem": {"robot": "panda (example-robot-data, fingers locked)", "dt": DT,
                           "frame_gain": FRAME_GAIN, "posture_gain": POSTURE_GAIN,

@@ -33,8 +33,9 @@ def test_unknown_command_is_an_argparse_error(capsys):
 def test_demo_writes_a_table_and_json(tmp_path, capsys):
     assert cli.main(["demo", "--ticks", "5", "--backends", "daqp", "quadprog",
                      "--out", str(tmp_path)]) == 0
-    out = capsys.readouterr().out
-    assert "| daqp |" in out and "| quadprog |" in out
+    captured = capsys.readouterr()
+    assert "| daqp |" in captured.out and "| quadprog |" in captured.out
+    assert "] 2/2  quadprog" in captured.err  # progress on stderr, tables on stdout
     report = json.loads((tmp_path / "microbench.json").read_text())
     assert set(report["backends"]) == {"daqp", "quadprog"}
     assert report["backends"]["daqp"]["failures"] == 0
@@ -46,6 +47,10 @@ def test_bench_writes_json_markdown_and_plots(tmp_path, capsys):
                      "acceleration", "--backends", "proxqp", "--ticks", "5", "--warmup", "2",
                      "--scaling-ticks", "3", "--scaling-joints", "7", "--out", str(tmp_path)])
     assert code == 0
+    progress = capsys.readouterr().err.splitlines()
+    assert progress == ["[########................] 1/3  mecanum_gen3 / one_level",
+                        "[################........] 2/3  mecanum_gen3 / acceleration",
+                        "[########################] 3/3  scaling: 7-joint chain"]
     report = json.loads((tmp_path / "solver_timing.json").read_text())
     for kind in ("one_level", "acceleration"):
         result = report["results"]["mecanum_gen3"][kind]["proxqp"]
