@@ -174,3 +174,21 @@ def test_a_level_determined_by_the_levels_above_is_not_solved():
     np.testing.assert_array_equal(second.x, first.x)
     np.testing.assert_array_equal(solution.x, first.x)
     assert [label for label, _, _ in ws.last_qps()] == [first.label]
+
+
+def test_an_inconsistent_scaled_task_below_a_level_is_reported_not_retried():
+    """A scaling level ``J x + d = s t`` with ``d`` and ``t`` such that no ``s`` makes it
+    consistent (rank-1 ``J``): the status says so (no solver call, no band retry), and the
+    level above is kept."""
+    n = 4
+    x = wbc.Variables(x=n)
+    stack = wbc.Stack(x, damping=0.1)
+    stack.add(LinearTask(np.eye(n)[:1], [0.5], name="first"), priority=0)
+    J = np.array([[1.0, 1.0, 0.0, 0.0], [2.0, 2.0, 0.0, 0.0]])
+    stack.add(wbc.Cost(J @ x["x"] + np.array([1.0, 0.0]), target=np.array([1.0, 2.0]),
+                       name="scaled"), priority=1, scaling=True)
+    stack.constrain(Bounds(-np.ones(n), np.ones(n), name="box"))
+    solution = stack.workspace("daqp").solve()  # first tick: backends not set up yet
+    assert solution.status is Status.INFEASIBLE and solution.partial
+    assert "inconsistent" in solution.message and "level 1" in solution.message
+    assert solution.x[0] == pytest.approx(0.5 / (1 + 0.1 ** 2), abs=1e-9)  # damped level 0

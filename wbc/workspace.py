@@ -219,7 +219,8 @@ class Workspace:
                 state.backend.setup(*state.qp)
                 state.ready = True
                 result = state.backend.solve(None)
-            if result.status is not Status.SOLVED and rank and not self.compiled.freeze_tol:
+            if (result.status is not Status.SOLVED and consistent and rank
+                    and not self.compiled.freeze_tol):
                 # Exact frozen rows through a vertex of the bounds leave a single feasible point,
                 # which solvers can miss by their last digit: retry within a thin band.
                 band = _RETRY_BAND
