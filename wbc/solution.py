@@ -38,7 +38,8 @@ class LevelResult:
         status: backend status.
         x: the decision vector after this QP (zeros if it failed).
         frozen_rank: rank of the earlier levels' frozen cost rows it was solved under.
-        iterations: backend iterations (``-1`` if unknown).
+        iterations: backend iterations (``-1`` if unknown; ``0`` for a level the levels
+            above determine completely, which no backend is asked to solve).
         message: the backend's message on failure.
         frozen_band: relative half-width of the band the frozen rows were kept in: 0 for exact
             equalities, the stack's ``freeze_tol``, or the workspace's retry band when the

@@ -7,7 +7,9 @@ buffers that write into them, and one persistent backend per block. The tick is:
     for each block (level, scaling LP, min-norm):   # a loop over levels, never over tasks
         evaluate its compiled function into its arrays         (≈ 1–3 µs)
         append frozen rows of earlier levels (numpy)
+        if they leave a single point: that is the level's answer, no solve
         backend.update(...); backend.solve(warm start)
+        on failure under exact frozen rows: once more within a 1e-7 band
 """
 
 from __future__ import annotations
