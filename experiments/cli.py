@@ -15,6 +15,7 @@ COMMANDS = {
     "bench": ("wbc.experiments.solver_timing", "solver-timing study over robots, stacks, "
               "backends"),
     "pink": ("wbc.experiments.vs_pink", "head-to-head with pink on the Panda"),
+    "mink": ("wbc.experiments.vs_mink", "head-to-head with mink on the Panda"),
 }
 
 

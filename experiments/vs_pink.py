@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import importlib
 import json
 import time
 import warnings
@@ -100,7 +101,16 @@ def build_wbc(robot, backend: str, jit: bool = True, kinematics: str = "compiled
 
 
 class PinkLoop:
-    """Pink's side: configuration, tasks, limits; :meth:`tick` is what is timed."""
+    """Pink's side: configuration, tasks, limits; :meth:`tick` is what is timed.
+
+    The study code (:func:`run_backend`, :func:`markdown_table`, :func:`main`) takes the rival
+    library's loop class as a parameter: ``name`` keys its results, ``requirement`` is the module
+    whose absence skips the study, and :meth:`target` converts a ``(4, 4)`` pose into the rival's
+    target type (untimed)."""
+
+    name = "pink"
+    requirement = "pink"
+    skip_message = SKIP_MESSAGE
 
     def __init__(self, robot, solver: str) -> None:
         import pink
@@ -124,39 +134,47 @@ class PinkLoop:
         return self.pink.solve_ik(self.configuration, self.tasks, DT, solver=self.solver,
                                   damping=DAMPING, limits=self.limits)
 
+    @staticmethod
+    def target(T: np.ndarray):
+        """``T`` (world, (4, 4)) as pink's target type."""
+        import pinocchio as pin
+
+        return pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+
 
 def _rotation_distance(Ra: np.ndarray, Rb: np.ndarray) -> float:
     cos = (np.trace(Ra.T @ Rb) - 1) / 2
     return float(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
-def run_backend(backend: str, ticks: int, jit: bool = True) -> dict:
+def run_backend(backend: str, ticks: int, jit: bool = True, rival: type | None = None) -> dict:
     """The closed loops on one backend, interleaved tick by tick (rotating their order), plus
-    untimed agreement checks at wbc's state (see the module docstring)."""
-    import pinocchio as pin
-
+    untimed agreement checks at wbc's state (see the module docstring). ``rival`` is the other
+    library's loop class (default :class:`PinkLoop`)."""
     from wbc.robots.fixed_base import load_panda
 
+    rival = PinkLoop if rival is None else rival
+    other = rival.name
     robot = load_panda()
     controller = build_wbc(robot, backend, jit, "compiled")
     numeric = build_wbc(robot, backend, jit, "numeric")  # the pinocchio-getter model stage
-    pink_loop = PinkLoop(robot, backend)
-    pink_same = PinkLoop(robot, backend)  # untimed: pink at wbc's state
-    pink_exact = PinkLoop(robot, "quadprog")  # untimed: pink's QP solved exactly
+    rival_loop = rival(robot, backend)
+    rival_same = rival(robot, backend)  # untimed: the rival at wbc's state
+    rival_exact = rival(robot, "quadprog")  # untimed: the rival's QP solved exactly
     goals = targets(robot.frame_pose(Q0, "ee").copy())
-    goals_se3 = [pin.SE3(T[:3, :3].copy(), T[:3, 3].copy()) for T in goals]
+    goals_rival = [rival.target(T) for T in goals]
     per_goal = max(1, ticks // len(goals))
-    q = {"wbc": Q0.copy(), "numeric": Q0.copy(), "pink": Q0.copy()}
+    q = {"wbc": Q0.copy(), "numeric": Q0.copy(), other: Q0.copy()}
     v = {}
     times = {name: np.empty(ticks) for name in q}
-    diff, err_wbc, err_pink = np.empty(ticks), np.empty(ticks), np.empty(ticks)
+    diff, err_wbc, err_rival = np.empty(ticks), np.empty(ticks), np.empty(ticks)
     split = np.empty((ticks, 3))  # wbc's own model / assembly / solve timings
     failures = 0
     clock = time.perf_counter
 
     def run(name: str, goal: int | None) -> None:
-        if name == "pink":
-            v[name] = pink_loop.tick(q[name], None if goal is None else goals_se3[goal])
+        if name == other:
+            v[name] = rival_loop.tick(q[name], None if goal is None else goals_rival[goal])
         else:
             ctrl = controller if name == "wbc" else numeric
             if goal is None:
@@ -179,35 +197,35 @@ def run_backend(backend: str, ticks: int, jit: bool = True) -> dict:
             solution = controller.last_solution
             failures += (not solution.ok) + (not numeric.last_solution.ok)
             split[k] = solution.timings.model, solution.timings.assembly, solution.timings.solve
-            v_same = pink_same.tick(q["wbc"], goals_se3[g])
-            v_exact = pink_exact.tick(q["wbc"], goals_se3[g])
+            v_same = rival_same.tick(q["wbc"], goals_rival[g])
+            v_exact = rival_exact.tick(q["wbc"], goals_rival[g])
             diff[k] = np.abs(v["wbc"] - v_same).max()
             err_wbc[k] = np.abs(v["wbc"] - v_exact).max()
-            err_pink[k] = np.abs(v_same - v_exact).max()
+            err_rival[k] = np.abs(v_same - v_exact).max()
             for name in q:
                 q[name] = q[name] + DT * v[name]
     finally:
         gc.enable()
-    q_w, q_p = q["wbc"], q["pink"]
-    t_wbc, t_pink = times["wbc"], times["pink"]
+    q_w, q_p = q["wbc"], q[other]
+    t_wbc, t_rival = times["wbc"], times[other]
     T_w = robot.frame_pose(q_w, "ee").copy()
     T_p = robot.frame_pose(q_p, "ee").copy()
     goal = goals[min((ticks - 1) // per_goal, len(goals) - 1)]
     pos_diff = float(np.linalg.norm(T_w[:3, 3] - T_p[:3, 3]))
     rot_diff = _rotation_distance(T_w[:3, :3], T_p[:3, :3])
     commands_agree = bool(diff.max() <= COMMAND_TOL
-                          or err_wbc.max() <= err_pink.max() + COMMAND_TOL)
-    wbc_med, pink_med = float(np.median(t_wbc)), float(np.median(t_pink))
+                          or err_wbc.max() <= err_rival.max() + COMMAND_TOL)
+    wbc_med, rival_med = float(np.median(t_wbc)), float(np.median(t_rival))
     split_median = np.median(split, axis=0)
     return {
         "wbc_median_s": wbc_med,
-        "pink_median_s": pink_med,
-        "ratio": wbc_med / pink_med,
+        f"{other}_median_s": rival_med,
+        "ratio": wbc_med / rival_med,
         "wbc_numeric_median_s": float(np.median(times["numeric"])),
-        "wbc_numeric_ratio": float(np.median(times["numeric"])) / pink_med,
+        "wbc_numeric_ratio": float(np.median(times["numeric"])) / rival_med,
         "numeric_vs_compiled_final_diff": float(np.abs(q["numeric"] - q_w).max()),
         "wbc_p95_s": float(np.percentile(t_wbc, 95)),
-        "pink_p95_s": float(np.percentile(t_pink, 95)),
+        f"{other}_p95_s": float(np.percentile(t_rival, 95)),
         "wbc_split_median_s": {"model": float(split_median[0]),
                                "assembly": float(split_median[1]),
                                "solve": float(split_median[2]),
@@ -220,53 +238,56 @@ def run_backend(backend: str, ticks: int, jit: bool = True) -> dict:
         "command_diff_median": float(np.median(diff)),
         "command_tol": COMMAND_TOL,
         "wbc_error_vs_exact_max": float(err_wbc.max()),
-        "pink_error_vs_exact_max": float(err_pink.max()),
+        f"{other}_error_vs_exact_max": float(err_rival.max()),
         "final_position_diff_m": pos_diff,
         "final_rotation_diff_rad": rot_diff,
         "pose_tol": POSE_TOL,
         "final_position_error_wbc_m": float(np.linalg.norm(T_w[:3, 3] - goal[:3, 3])),
-        "final_position_error_pink_m": float(np.linalg.norm(T_p[:3, 3] - goal[:3, 3])),
+        f"final_position_error_{other}_m": float(np.linalg.norm(T_p[:3, 3] - goal[:3, 3])),
         "commands_agree": commands_agree,
         "agree": bool(commands_agree and pos_diff <= POSE_TOL and rot_diff <= POSE_TOL
                       and failures == 0),
     }
 
 
-def markdown_table(results: dict) -> str:
-    rows = ["| backend | wbc median [µs] | pink median [µs] | wbc / pink | wbc numeric-kinematics "
-            "[µs] (ratio) | Δv p99 / max [rad/s] | error vs exact wbc / pink [rad/s] | "
-            "final Δpose [m, rad] | agree |",
+def markdown_table(results: dict, rival: str = "pink") -> str:
+    rows = [f"| backend | wbc median [µs] | {rival} median [µs] | wbc / {rival} | wbc "
+            "numeric-kinematics [µs] (ratio) | Δv p99 / max [rad/s] | error vs exact wbc / "
+            f"{rival} [rad/s] | final Δpose [m, rad] | agree |",
             "|---|---:|---:|---:|---:|---:|---:|---:|:---:|"]
     for name, r in results.items():
         rows.append(
-            f"| {name} | {r['wbc_median_s'] * 1e6:.1f} | {r['pink_median_s'] * 1e6:.1f} | "
+            f"| {name} | {r['wbc_median_s'] * 1e6:.1f} | {r[f'{rival}_median_s'] * 1e6:.1f} | "
             f"{r['ratio']:.3f} | {r['wbc_numeric_median_s'] * 1e6:.1f} "
             f"({r['wbc_numeric_ratio']:.3f}) | "
             f"{r['command_diff_p99']:.0e} / {r['command_diff_max']:.0e} | "
-            f"{r['wbc_error_vs_exact_max']:.0e} / {r['pink_error_vs_exact_max']:.0e} | "
+            f"{r['wbc_error_vs_exact_max']:.0e} / {r[f'{rival}_error_vs_exact_max']:.0e} | "
             f"{max(r['final_position_diff_m'], r['final_rotation_diff_rad']):.1e} | "
             f"{'yes' if r['agree'] else 'NO'} |")
     return "\n".join(rows)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, rival: type | None = None) -> int:
+    """The study against ``rival`` (a loop class like :class:`PinkLoop`, the default)."""
+    rival = PinkLoop if rival is None else rival
+    other = rival.name
     parser = argparse.ArgumentParser(
-        prog="python -m wbc.experiments.vs_pink",
-        description="wbc vs pink on the Panda: median tick per backend, ratio, agreement.")
+        prog=f"python -m wbc.experiments.vs_{other}",
+        description=f"wbc vs {other} on the Panda: median tick per backend, ratio, agreement.")
     parser.add_argument("--ticks", type=int, default=3000, help="ticks per backend")
     parser.add_argument("--backends", nargs="+", default=list(BACKENDS),
                         help="backends to compare (those both sides support are run)")
-    parser.add_argument("--out", type=Path, default=Path("results/vs_pink"),
-                        help="output folder for vs_pink.json")
+    parser.add_argument("--out", type=Path, default=Path(f"results/vs_{other}"),
+                        help=f"output folder for vs_{other}.json")
     parser.add_argument("--no-jit", dest="jit", action="store_false",
                         help="evaluate wbc's compiled stack on CasADi's VM instead of JIT C")
     args = parser.parse_args(argv)
     backends = [b for item in args.backends for b in item.split(",") if b]
     try:
-        import pink  # noqa: F401
+        importlib.import_module(rival.requirement)
         import qpsolvers
     except ImportError:
-        print(SKIP_MESSAGE)
+        print(rival.skip_message)
         return 0
     from wbc.experiments.machine import describe_machine
     from wbc.experiments.progress import report_progress
@@ -278,9 +299,9 @@ def main(argv: list[str] | None = None) -> int:
     runs = [b for b in backends if b not in skipped]
     for done, backend in enumerate(runs, start=1):
         try:
-            with warnings.catch_warnings():  # pink passes dense matrices to sparse solvers
+            with warnings.catch_warnings():  # pink/mink pass dense matrices to sparse solvers
                 warnings.simplefilter("ignore", qpsolvers.warnings.SparseConversionWarning)
-                results[backend] = run_backend(backend, args.ticks, args.jit)
+                results[backend] = run_backend(backend, args.ticks, args.jit, rival)
         except Exception as err:  # one broken backend must not hide the others' results
             errors[backend] = f"{type(err).__name__}: {err}"
         report_progress(done, len(runs), backend)
@@ -288,12 +309,14 @@ def main(argv: list[str] | None = None) -> int:
     report = {"problem": {"robot": "panda (example-robot-data, fingers locked)", "dt": DT,
                           "frame_gain": FRAME_GAIN, "posture_gain": POSTURE_GAIN,
                           "posture_cost": POSTURE_COST, "limit_gain": LIMIT_GAIN,
-                          "damping": DAMPING, "q0": Q0.tolist()},
+                          "damping": DAMPING, "q0": Q0.tolist(),
+                          **(rival.problem_notes() if hasattr(rival, "problem_notes")
+                             else {})},
               "backends": results, "skipped": skipped, "errors": errors, "machine": machine}
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / "vs_pink.json"
+    path = args.out / f"vs_{other}.json"
     path.write_text(json.dumps(report, indent=2))
-    print(markdown_table(results))
+    print(markdown_table(results, other))
     print(f"\nmachine: {machine['cpu']}, {machine['cores']} cores, {machine['platform']}, "
           f"python {machine['python']}; jit={args.jit}; {args.ticks} ticks per backend")
     if skipped:
