@@ -1,4 +1,4 @@
-"""The ``wbc`` command line: ``wbc list``, ``wbc demo``, ``wbc bench``, ``wbc pink``.
+"""The ``wbc`` command line: ``wbc list``, ``wbc demo``, ``wbc bench``, ``wbc pink``, ``wbc mink``.
 
 Each sub-command forwards its remaining arguments to the ``main(argv)`` of its experiment
 module, so ``wbc bench --help`` shows that study's own options.
