@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from wbc.errors import InvalidValueError
+
 from .planar_base import UNICYCLE_MAP, PlanarBase, as_vector
 
 __all__ = ["DifferentialDriveBase", "tiago_base"]
@@ -50,7 +52,8 @@ class DifferentialDriveBase(PlanarBase):
         a_max,
     ) -> None:
         if separation <= 0.0 or radius <= 0.0:
-            raise ValueError(f"separation ({separation}) and radius ({radius}) must be positive")
+            raise InvalidValueError(
+                f"separation ({separation}) and radius ({radius}) must be positive")
         self.separation = float(separation)
         self.radius = float(radius)
         super().__init__(name, mass, com, inertia, v_max, a_max)

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wbc.errors import BoundsOrderError, ShapeError
+from wbc.errors import BoundsOrderError, NonFiniteError, ShapeError
 
 __all__ = ["Limits"]
 
@@ -49,7 +49,7 @@ class Limits:
                     f"{lo.shape} and {upper} {hi.shape}"
                 )
             if np.any(np.isnan(lo)) or np.any(np.isnan(hi)):
-                raise ValueError(f"{label} limits hold NaN")
+                raise NonFiniteError(f"{label} limits hold NaN")
             if np.any(lo > hi):
                 bad = np.flatnonzero(lo > hi).tolist()
                 raise BoundsOrderError(f"{label} lower limit exceeds upper at indices {bad}")

@@ -78,7 +78,7 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from wbc.errors import NonFiniteError, ShapeError, UnknownNameError
+from wbc.errors import InvalidValueError, NonFiniteError, ShapeError, UnknownNameError
 
 from .arms import Arm, arm_from_model, arm_from_urdf
 from .fixed_base import symbolic_frame_drift, symbolic_frame_kinematics
@@ -105,7 +105,7 @@ def _as_se3(mount) -> pin.SE3:
         raise NonFiniteError("mount holds NaN or inf")
     rotation = matrix[:3, :3]
     if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-9) or np.linalg.det(rotation) < 0:
-        raise ValueError("mount's rotation block is not a rotation matrix")
+        raise InvalidValueError("mount's rotation block is not a rotation matrix")
     return pin.SE3(rotation, matrix[:3, 3])
 
 

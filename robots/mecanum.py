@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from wbc.errors import InvalidValueError
+
 from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, box_inertia
 
 __all__ = ["MecanumBase", "mecanum_base"]
@@ -58,7 +60,7 @@ class MecanumBase(PlanarBase):
         a_max,
     ) -> None:
         if min(radius, half_wheelbase, half_track) <= 0.0:
-            raise ValueError("radius, half_wheelbase and half_track must be positive")
+            raise InvalidValueError("radius, half_wheelbase and half_track must be positive")
         self.radius = float(radius)
         self.half_wheelbase = float(half_wheelbase)
         self.half_track = float(half_track)

@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from wbc.errors import InvalidValueError
+
 from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, cylinder_inertia
 
 __all__ = ["OmniBase", "omni4_octagon"]
@@ -58,9 +60,10 @@ class OmniBase(PlanarBase):
     ) -> None:
         self.angles = np.array(angles, dtype=float)
         if self.angles.ndim != 1 or self.angles.size < 3:
-            raise ValueError(f"an omni base needs at least 3 wheel angles, got {self.angles}")
+            raise InvalidValueError(
+                f"an omni base needs at least 3 wheel angles, got {self.angles}")
         if distance <= 0.0 or radius <= 0.0:
-            raise ValueError(f"distance ({distance}) and radius ({radius}) must be positive")
+            raise InvalidValueError(f"distance ({distance}) and radius ({radius}) must be positive")
         self.distance = float(distance)
         self.radius = float(radius)
         super().__init__(name, mass, com, inertia, v_max, a_max)

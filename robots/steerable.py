@@ -33,7 +33,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from wbc.errors import ShapeError
+from wbc.errors import InvalidValueError, ShapeError
 
 from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, box_inertia
 
@@ -86,7 +86,7 @@ class SteerableBase(PlanarBase):
         if hips.ndim != 2 or hips.shape[1] != 2 or hips.shape[0] < 2:
             raise ShapeError(f"hips must have shape (N, 2) with N >= 2, got {hips.shape}")
         if offset <= 0.0 or radius <= 0.0:
-            raise ValueError(f"offset ({offset}) and radius ({radius}) must be positive")
+            raise InvalidValueError(f"offset ({offset}) and radius ({radius}) must be positive")
         self.hips = hips
         self.offset = float(offset)
         self.radius = float(radius)
@@ -183,7 +183,7 @@ class SteerableBase(PlanarBase):
         h = np.array([-vy, vx, omega])
         norm = float(np.linalg.norm(h))
         if norm == 0.0:
-            raise ValueError("a zero twist has no instantaneous centre of rotation")
+            raise InvalidValueError("a zero twist has no instantaneous centre of rotation")
         if homogeneous:
             return h / norm
         if omega == 0.0:
