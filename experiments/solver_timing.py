@@ -17,7 +17,8 @@ split into kinematics (model stage) / assembly / solve, whether it succeeded (or
 lower level failed and the command is the levels above it), and the largest difference of its
 command from the reference's. Controllers use ``kinematics="compiled"`` by default (poses and
 Jacobians inside the compiled functions; ``--kinematics numeric`` times pinocchio's getters
-instead) and the CasADi virtual machine (``--jit`` compiles to C).
+instead) and compiled C for the level functions (:mod:`wbc.jit`, built once per machine and
+cached; ``--no-jit`` times CasADi's virtual machine).
 
 The scaling study times the ``one_level`` stack on fixed-base serial chains of 7 to 100
 joints. Outputs, in ``--out``: ``solver_timing.json`` (raw per-tick samples [µs] and the
@@ -138,7 +139,7 @@ def reference_run(robot, kind: str, ticks: int, q0: np.ndarray | None = None) ->
 
 
 def replay(robot, kind: str, backends: list[str], run: dict, warmup: int,
-           kinematics: str = "compiled", jit: bool = False) -> dict:
+           kinematics: str = "compiled", jit: bool = True) -> dict:
     """Time every backend on the reference state sequence, interleaved: at each state every
     backend's controller ticks once, in an order rotating from state to state, so that machine
     noise hits all backends alike. Returns ``{backend: result}`` with raw samples in µs.
@@ -203,7 +204,7 @@ def serial_chain(n: int) -> FixedBaseRobot:
 # ----------------------------------------------------------------------------- study
 def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, warmup: int,
         scaling_ticks: int, scaling_joints: tuple[int, ...], kinematics: str = "compiled",
-        jit: bool = False, progress=None) -> dict:
+        jit: bool = True, progress=None) -> dict:
     """The whole study; returns the JSON-able report. ``progress(done, total, what)`` is called
     after each robot × stack and each chain size."""
     report = {"machine": describe_machine(), "dt_s": DT, "ticks": ticks, "warmup": warmup,
@@ -329,9 +330,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kinematics", choices=("compiled", "numeric"), default="compiled",
                         help="model stage: poses and Jacobians inside the compiled functions "
                              "(default) or from pinocchio every tick")
-    parser.add_argument("--jit", action="store_true",
-                        help="JIT-compile the level functions to C (faster ticks; about 0.5 s "
-                             "per level and controller to build, several minutes in all)")
+    parser.add_argument("--no-jit", action="store_true",
+                        help="evaluate the level functions on CasADi's virtual machine instead "
+                             "of compiled C (wbc.jit; built once per machine, then cached)")
     parser.add_argument("--out", type=Path, default=Path("results"),
                         help="output folder (default ./results)")
     args = parser.parse_args(argv)
@@ -351,7 +352,8 @@ def main(argv: list[str] | None = None) -> int:
     if any(n < 2 for n in args.scaling_joints):
         parser.error("--scaling-joints sizes must be >= 2")
     report = run(robots, args.stacks, backends, args.ticks, args.warmup, args.scaling_ticks,
-                 tuple(args.scaling_joints), args.kinematics, args.jit, report_progress)
+                 tuple(args.scaling_joints), args.kinematics, not args.no_jit,
+                 report_progress)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "solver_timing.json").write_text(json.dumps(report))
     table = markdown(report)

@@ -1,5 +1,8 @@
 """Test configuration: deterministic hypothesis, offline."""
 
+import os
+import tempfile
+
 from hypothesis import HealthCheck, settings
 
 # Deterministic and offline: the same examples every run, no example database on disk.
@@ -8,3 +11,6 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
 settings.load_profile("wbc")
+
+# JIT libraries of the test run go to a fresh folder, not the user's cache.
+os.environ.setdefault("WBC_JIT_CACHE", tempfile.mkdtemp(prefix="wbc-test-jit-"))

@@ -13,8 +13,6 @@ transpose lands row-major, straight into row blocks of C-ordered numpy arrays.
 
 from __future__ import annotations
 
-import dataclasses
-import warnings
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -286,25 +284,3 @@ def _block_function(name, p_sym, H, g, A_top, l_top, u_top, lb, ub, E) -> ca.Fun
                            f"{str(err).split('variables')[-1].split('are free')[0].strip()}"
                            ) from None
         raise
-
-
-def jit_compiled(compiled: CompiledStack, flags: tuple[str, ...] = ("-O2",)) -> CompiledStack:
-    """A copy of ``compiled`` whose level functions are JIT-compiled C (same inputs/outputs).
-
-    The compiled stack is immutable: this returns a new one (``dataclasses.replace``). If no C
-    compiler works, warns and returns ``compiled`` unchanged.
-    """
-    blocks = []
-    try:
-        for block in compiled.blocks:
-            fn = block.function
-            jitted = ca.Function(f"{fn.name()}_jit", fn.sx_in(), fn.call(fn.sx_in()),
-                                 fn.name_in(), fn.name_out(),
-                                 {"jit": True, "compiler": "shell",
-                                  "jit_options": {"flags": list(flags), "verbose": False}})
-            blocks.append(dataclasses.replace(block, function=jitted))
-    except RuntimeError as err:
-        warnings.warn(f"JIT compilation failed, using CasADi's virtual machine: {err}",
-                      RuntimeWarning, stacklevel=2)
-        return compiled
-    return dataclasses.replace(compiled, blocks=tuple(blocks))

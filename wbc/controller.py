@@ -64,7 +64,7 @@ import casadi as ca
 import numpy as np
 
 from .checks import all_finite, checked_array
-from .compiler import CompiledStack, jit_compiled
+from .compiler import CompiledStack
 from .errors import (
     InfeasibleError,
     InvalidValueError,
@@ -73,6 +73,7 @@ from .errors import (
     UnknownNameError,
     WbcError,
 )
+from .jit import jit_compiled
 from .qp import Status
 from .solution import Solution
 from .stack import Stack
@@ -129,10 +130,10 @@ class Controller:
             catalogue robots); ``"auto"`` (default) — compiled when the robot offers
             ``symbolic_frame`` for the stack's frames, else numeric. ``self.kinematics``
             holds the choice made.
-        jit: compile the level functions to C with CasADi's JIT (needs a C compiler, costs
-            about half a second per level at construction; evaluation drops from ≈ 8 µs to
-            ≈ 0.6 µs for a Panda pose + posture level). Without a compiler: a warning and the
-            CasADi virtual machine.
+        jit: evaluate the level functions as compiled C (needs a C compiler; each function is
+            built once per machine, 0.1–0.5 s, and cached on disk, see :mod:`wbc.jit`;
+            evaluation drops from ≈ 8 µs to ≈ 0.6 µs for a Panda pose + posture level).
+            Without a compiler: a warning and the CasADi virtual machine.
         **options: backend options overriding the profile.
 
     Attributes:

@@ -239,10 +239,11 @@ class Stack:
         """A new mutable :class:`~wbc.workspace.Workspace` (buffers + live solvers).
 
         Args:
-            jit: evaluate the level functions as JIT-compiled C instead of CasADi's virtual
-                machine (needs a C compiler; ~0.5 s per level once, then several times faster).
+            jit: evaluate the level functions as compiled C instead of CasADi's virtual
+                machine (needs a C compiler; each function is built once per machine and
+                cached on disk, see :mod:`wbc.jit`).
         """
-        from .compiler import jit_compiled
+        from .jit import jit_compiled
         from .workspace import Workspace
 
         compiled = jit_compiled(self.compile()) if jit else self.compile()

@@ -1,0 +1,96 @@
+"""JIT compilation of a compiled stack's functions to C, cached on disk.
+
+CasADi generates the C code of each block function; the system compiler (``$CC``, default
+``cc``) builds it into a shared library that :func:`casadi.external` loads. Libraries are kept
+in a cache folder under a hash of the C source, the compiler and its flags, so a function is
+compiled once per machine, however many controllers, backends or processes use it: the first
+build costs ≈ 0.1–0.5 s per function, every later one ≈ 1 ms. Evaluation drops from the
+CasADi virtual machine's ≈ 10 µs to ≈ 1 µs for a Panda pose + posture level.
+
+Cache folder: ``$WBC_JIT_CACHE`` if set, else ``$XDG_CACHE_HOME/wbc/jit`` (``~/.cache/wbc/jit``).
+If it cannot be written, libraries go to a temporary folder for this process only. Builds
+write to a temporary file and rename it, so concurrent processes never load a partial library.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+import subprocess
+import tempfile
+import warnings
+from functools import cache
+from pathlib import Path
+
+import casadi as ca
+
+from .compiler import CompiledStack
+
+DEFAULT_FLAGS = ("-O2",)
+
+
+def cache_dir() -> Path:
+    """The folder the shared libraries are kept in (see the module docstring)."""
+    if os.environ.get("WBC_JIT_CACHE"):
+        return Path(os.environ["WBC_JIT_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "wbc" / "jit"
+
+
+@cache
+def _process_dir() -> Path:
+    """A temporary folder for this process, when the cache folder is not writable."""
+    return Path(tempfile.mkdtemp(prefix="wbc-jit-"))
+
+
+def compiled_c(function: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS) -> ca.Function:
+    """``function`` (same name, inputs and outputs) evaluated by compiled C from the cache,
+    building the library first if needed. Raises ``RuntimeError`` if the compiler fails."""
+    generator = ca.CodeGenerator(f"{function.name()}.c", {"with_header": False})
+    generator.add(function)
+    source = generator.dump()
+    compiler = os.environ.get("CC", "cc")
+    key = hashlib.sha256("\0".join([source, compiler, *flags]).encode()).hexdigest()[:24]
+    name = f"{function.name()}_{key}.so"
+    for folder in (cache_dir(), _process_dir()):
+        library = folder / name
+        try:
+            if not library.exists():
+                _build(source, library, compiler, flags)
+            return ca.external(function.name(), str(library))
+        except OSError:  # not writable: next folder
+            continue
+    raise RuntimeError(f"no writable folder for JIT libraries (tried {cache_dir()})")
+
+
+def _build(source: str, library: Path, compiler: str, flags: tuple[str, ...]) -> None:
+    library.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=library.parent) as tmp:
+        c_file, built = Path(tmp) / "block.c", Path(tmp) / library.name
+        c_file.write_text(source)
+        try:
+            done = subprocess.run([compiler, *flags, "-shared", "-fPIC", "-o", str(built),
+                                   str(c_file)], capture_output=True, text=True)
+        except FileNotFoundError as err:
+            raise RuntimeError(f"C compiler {compiler!r} not found") from err
+        if done.returncode != 0:
+            raise RuntimeError(f"{compiler} failed: {done.stderr.strip()[:400]}")
+        os.replace(built, library)  # atomic: readers see no library or a whole one
+
+
+def jit_compiled(compiled: CompiledStack,
+                 flags: tuple[str, ...] = DEFAULT_FLAGS) -> CompiledStack:
+    """A copy of ``compiled`` whose block functions are compiled C (same inputs and outputs).
+
+    The compiled stack is immutable: this returns a new one (``dataclasses.replace``). If no C
+    compiler works, warns and returns ``compiled`` unchanged (the CasADi virtual machine).
+    """
+    try:
+        blocks = tuple(dataclasses.replace(block, function=compiled_c(block.function, flags))
+                       for block in compiled.blocks)
+    except RuntimeError as err:
+        warnings.warn(f"JIT compilation failed, using CasADi's virtual machine: {err}",
+                      RuntimeWarning, stacklevel=2)
+        return compiled
+    return dataclasses.replace(compiled, blocks=blocks)
