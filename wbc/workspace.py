@@ -50,8 +50,9 @@ def _row_basis(M: np.ndarray, rank_tol: float) -> tuple[int, np.ndarray]:
     the time of an SVD for a tick's few rows). The rank counts the pivots ``|R_ii|`` above
     ``rank_tol·|R_00|`` (and an absolute floor)."""
     qr, _, tau, _, _ = _GEQP3(M.T)
-    pivots = np.abs(qr.diagonal())
-    rank = int(np.count_nonzero(pivots > max(_ABS_RANK_TOL, rank_tol * pivots[0])))
+    pivots = qr.diagonal().tolist()  # few: Python beats numpy's per-call cost here
+    tol = max(_ABS_RANK_TOL, rank_tol * abs(pivots[0]))
+    rank = sum(abs(pivot) > tol for pivot in pivots)
     Q, _, _ = _ORGQR(qr[:, :tau.shape[0]], tau)
     return rank, Q
 
@@ -100,6 +101,7 @@ class _BlockState:
         eq = slice(soft.stop, soft.stop + block.m_frozen_eq)
         self.soft_rows, self.soft_lA, self.soft_uA = self.A[soft, :n], self.lA[soft], self.uA[soft]
         self.eq_rows, self.eq_lA, self.eq_uA = self.A[eq, :n], self.lA[eq], self.uA[eq]
+        self.frozen_rank = 0  # frozen equality rows in use; the rest are inert (0, ±inf)
         self.lb_x, self.ub_x = self.lb[:n], self.ub[:n]
         self.qp = (self.H, self.g, self.A, self.lA, self.uA, self.lb, self.ub)
         self.has_frozen_rows = bool(block.n_frozen_cost or block.n_frozen_soft)
@@ -287,15 +289,17 @@ class Workspace:
         basis = Q[:, :rank].T
         rows, lA, uA = state.eq_rows, state.eq_lA, state.eq_uA
         rows[:rank] = basis
-        rows[rank:] = 0.0
+        if rank < state.frozen_rank:  # rows beyond the rank become inert again
+            rows[rank:state.frozen_rank] = 0.0
+            lA[rank:state.frozen_rank] = -np.inf
+            uA[rank:state.frozen_rank] = np.inf
+        state.frozen_rank = rank
         # At the earlier optimum clipped into the bounds: solvers return x up to their primal
         # tolerance (daqp: ~1e-11 outside an active bound), and rows frozen at such a point
         # leave later levels a feasible set the solver can judge empty.
         rhs = basis @ np.minimum(np.maximum(x, state.lb_x), state.ub_x)
         lA[:rank] = rhs
         uA[:rank] = rhs
-        lA[rank:] = -np.inf
-        uA[rank:] = np.inf
         if self.compiled.freeze_tol:
             self._widen_frozen_rows(state, rank, self.compiled.freeze_tol)
         if rank + n_fixed == block.n_z:  # x itself meets every row and constraint kept
