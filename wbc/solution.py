@@ -60,8 +60,10 @@ class Solution:
     """Result of ``stack.solve`` / ``workspace.solve``.
 
     Attributes:
-        x: the decision vector. On failure: the result of the last level that succeeded (its
-            higher priorities are still met), or zeros if the first level failed — never NaN.
+        x: the decision vector, exactly within the variable bounds (clipped: solvers meet
+            them only to their tolerance). On failure: the result of the last level that
+            succeeded (its higher priorities are still met), or zeros if the first level
+            failed — never NaN.
         status: ``Status.SOLVED`` or the status of the first failing QP.
         levels: one :class:`LevelResult` per QP solved, in order.
         scale: task scale ``s ∈ [0, 1]`` of the first scaling level, ``None`` if none.

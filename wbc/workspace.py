@@ -8,7 +8,8 @@ buffers that write into them, and one persistent backend per block. The tick is:
         evaluate its compiled function into its arrays         (≈ 1–3 µs)
         append frozen rows of earlier levels (numpy)
         if they leave a single point: that is the level's answer, no solve
-        backend.update(...); backend.solve(warm start)
+        backend.update(...); backend.solve(warm start: its last solution, with the level
+                                             above's x in place of its own)
         on failure under exact frozen rows: once more within a 1e-7 band
 """
 
@@ -29,6 +30,11 @@ from .solution import LevelResult, Solution, Timings
 BackendSpec = str | Callable[[], Backend]
 
 _ABS_RANK_TOL = 1e-12
+try:  # the ufunc behind np.clip: one call, where np.clip's Python wrappers cost 4x more
+    from numpy._core.umath import clip as _clip
+except ImportError:  # numpy < 2
+    from numpy.core.umath import clip as _clip
+
 _GESDD, _GEQP3, _ORGQR = get_lapack_funcs(("gesdd", "geqp3", "orgqr"), dtype=np.float64)
 _RETRY_BAND = 1e-7  # relative half-width of the frozen rows when the exact solve failed
 _INCONSISTENT = ("the task's equations are inconsistent (target outside the range of its "
@@ -218,7 +224,12 @@ class Workspace:
                                   np.zeros(block.n_z), message=_INCONSISTENT)
             elif state.ready:
                 state.backend.update(*state.qp)
-                result = state.backend.solve(state.warm)
+                warm = state.warm
+                if warm is not None and x is not None:
+                    # the level above's optimum is feasible here, and often near-optimal
+                    warm = warm.copy()
+                    warm[:n] = x
+                result = state.backend.solve(warm)
             else:
                 state.backend.setup(*state.qp)
                 state.ready = True
@@ -255,7 +266,9 @@ class Workspace:
                 self.p[block.scale_index] = s
                 level_x = z[:n].copy()
             else:
-                x = level_x = z[:n].copy()
+                # Exactly within the bounds: solvers meet them only to their tolerance (daqp
+                # ~1e-11, osqp ~1e-5), and commands and the rows frozen at x must not leave them.
+                x = level_x = _clip(z[:n], state.lb_x, state.ub_x)
                 if block.m_soft:
                     self._freeze_soft_rows(state, z[n:])
             levels.append(LevelResult(block.label, result.status, level_x, rank,
@@ -294,10 +307,9 @@ class Workspace:
             lA[rank:state.frozen_rank] = -np.inf
             uA[rank:state.frozen_rank] = np.inf
         state.frozen_rank = rank
-        # At the earlier optimum clipped into the bounds: solvers return x up to their primal
-        # tolerance (daqp: ~1e-11 outside an active bound), and rows frozen at such a point
-        # leave later levels a feasible set the solver can judge empty.
-        rhs = basis @ np.minimum(np.maximum(x, state.lb_x), state.ub_x)
+        # x is within the bounds (see solve): rows frozen at a point outside them would leave
+        # later levels a feasible set a solver can judge empty.
+        rhs = basis @ x
         lA[:rank] = rhs
         uA[:rank] = rhs
         if self.compiled.freeze_tol:
