@@ -16,9 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wbc.errors import InvalidValueError
-
-from .planar_base import UNICYCLE_MAP, PlanarBase, as_vector
+from .planar_base import UNICYCLE_MAP, PlanarBase, as_vector, require_positive
 
 __all__ = ["DifferentialDriveBase", "tiago_base"]
 
@@ -51,9 +49,7 @@ class DifferentialDriveBase(PlanarBase):
         v_max,
         a_max,
     ) -> None:
-        if separation <= 0.0 or radius <= 0.0:
-            raise InvalidValueError(
-                f"separation ({separation}) and radius ({radius}) must be positive")
+        require_positive(separation=separation, radius=radius)
         self.separation = float(separation)
         self.radius = float(radius)
         super().__init__(name, mass, com, inertia, v_max, a_max)

@@ -21,9 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wbc.errors import InvalidValueError
-
-from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, box_inertia
+from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, box_inertia, require_positive
 
 __all__ = ["MecanumBase", "mecanum_base"]
 
@@ -59,8 +57,7 @@ class MecanumBase(PlanarBase):
         v_max,
         a_max,
     ) -> None:
-        if min(radius, half_wheelbase, half_track) <= 0.0:
-            raise InvalidValueError("radius, half_wheelbase and half_track must be positive")
+        require_positive(radius=radius, half_wheelbase=half_wheelbase, half_track=half_track)
         self.radius = float(radius)
         self.half_wheelbase = float(half_wheelbase)
         self.half_track = float(half_track)

@@ -23,7 +23,13 @@ import numpy as np
 
 from wbc.errors import InvalidValueError
 
-from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, cylinder_inertia
+from .planar_base import (
+    HOLONOMIC_MAP,
+    PlanarBase,
+    as_vector,
+    cylinder_inertia,
+    require_positive,
+)
 
 __all__ = ["OmniBase", "omni4_octagon"]
 
@@ -62,8 +68,7 @@ class OmniBase(PlanarBase):
         if self.angles.ndim != 1 or self.angles.size < 3:
             raise InvalidValueError(
                 f"an omni base needs at least 3 wheel angles, got {self.angles}")
-        if distance <= 0.0 or radius <= 0.0:
-            raise InvalidValueError(f"distance ({distance}) and radius ({radius}) must be positive")
+        require_positive(distance=distance, radius=radius)
         self.distance = float(distance)
         self.radius = float(radius)
         super().__init__(name, mass, com, inertia, v_max, a_max)

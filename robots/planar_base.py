@@ -25,7 +25,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 import pinocchio as pin
 
-from wbc.errors import NonFiniteError, ShapeError
+from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
 
 __all__ = ["PlanarBase", "as_vector", "HOLONOMIC_MAP", "UNICYCLE_MAP"]
 
@@ -47,6 +47,14 @@ def as_vector(value, size: int, name: str) -> np.ndarray:
     if not np.all(np.isfinite(array)):
         raise NonFiniteError(f"{name} holds NaN or inf: {array}")
     return array
+
+
+def require_positive(**lengths: float) -> None:
+    """Raise :class:`~wbc.InvalidValueError` naming every given length [m] that is not > 0
+    (wheel radii, track widths, offsets of a base's geometry)."""
+    bad = [f"{name} = {value}" for name, value in lengths.items() if not value > 0.0]
+    if bad:
+        raise InvalidValueError(f"{', '.join(lengths)} must be positive, got {', '.join(bad)}")
 
 
 class PlanarBase(ABC):

@@ -35,7 +35,7 @@ import numpy as np
 
 from wbc.errors import InvalidValueError, ShapeError
 
-from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, box_inertia
+from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, box_inertia, require_positive
 
 __all__ = ["SteerableBase", "SteerableRates", "mpo700"]
 
@@ -85,8 +85,7 @@ class SteerableBase(PlanarBase):
         hips = np.array(hips, dtype=float)
         if hips.ndim != 2 or hips.shape[1] != 2 or hips.shape[0] < 2:
             raise ShapeError(f"hips must have shape (N, 2) with N >= 2, got {hips.shape}")
-        if offset <= 0.0 or radius <= 0.0:
-            raise InvalidValueError(f"offset ({offset}) and radius ({radius}) must be positive")
+        require_positive(offset=offset, radius=radius)
         self.hips = hips
         self.offset = float(offset)
         self.radius = float(radius)

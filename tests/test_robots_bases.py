@@ -7,8 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from wbc.errors import InvalidValueError
 from wbc.robots import (
+    DifferentialDriveBase,
     MecanumBase,
+    OmniBase,
     SteerableBase,
     mecanum_base,
     mpo700,
@@ -17,6 +20,8 @@ from wbc.robots import (
 )
 
 EPS = 1e-6
+_BODY = {"mass": 10.0, "com": [0.0, 0.0, 0.0], "inertia": np.eye(3), "v_max": [1.0, 1.0, 1.0],
+         "a_max": [1.0, 1.0, 1.0]}
 
 
 def random_twists(rng, n=20, scale=(1.0, 1.0, 1.5)):
@@ -277,3 +282,20 @@ def test_pose_rate_drift_is_the_derivative_of_h(factory):
     ) / (2 * EPS)
     np.testing.assert_allclose(base.pose_rate_drift(theta, command), expected, atol=1e-8)
     assert base.constraint_matrix(theta).shape == (3 - base.nv, 3)
+
+
+@pytest.mark.parametrize("make, lengths", [
+    (lambda **k: DifferentialDriveBase(**k, **{**_BODY, "v_max": [1.0, 1.0], "a_max": [1.0, 1.0]}),
+     {"separation": 0.4, "radius": 0.1}),
+    (lambda **k: MecanumBase(**k, **_BODY),
+     {"radius": 0.076, "half_wheelbase": 0.25, "half_track": 0.2}),
+    (lambda **k: OmniBase([0.0, 2.0, 4.0], **k, **_BODY), {"distance": 0.2, "radius": 0.05}),
+    (lambda **k: SteerableBase([[0.3, 0.2], [-0.3, -0.2]], **k, **_BODY),
+     {"offset": 0.02, "radius": 0.09}),
+])
+def test_base_geometry_must_be_positive(make, lengths):
+    make(**lengths)  # valid
+    for name in lengths:
+        for bad in (0.0, -0.1):
+            with pytest.raises(InvalidValueError, match=rf"{name} = {bad}"):
+                make(**{**lengths, name: bad})
