@@ -269,14 +269,7 @@ def ur10() -> Arm:
     End effector ``tool0``. Position and velocity limits from the URDF; acceleration limits
     assumed 10 rad/s² (UR publishes none). Home ``[0, −π/2, π/2, −π/2, −π/2, 0]``.
     """
-    return arm_from_urdf(
-        urdf_path("ur_description/urdf/ur10_robot.urdf"),
-        "tool0",
-        name="ur10",
-        a_max=np.full(6, 10.0),
-        home=[0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0],
-        source="example-robot-data ur_description/urdf/ur10_robot.urdf",
-    )
+    return _universal_robot("ur10")
 
 
 def ur5() -> Arm:
@@ -284,13 +277,19 @@ def ur5() -> Arm:
 
     Acceleration limits assumed 10 rad/s². Home ``[0, −π/2, π/2, −π/2, −π/2, 0]``.
     """
+    return _universal_robot("ur5")
+
+
+def _universal_robot(model: str) -> Arm:
+    """A UR arm of example-robot-data: ``tool0``, 10 rad/s² assumed, the common home pose."""
+    path = f"ur_description/urdf/{model}_robot.urdf"
     return arm_from_urdf(
-        urdf_path("ur_description/urdf/ur5_robot.urdf"),
+        urdf_path(path),
         "tool0",
-        name="ur5",
+        name=model,
         a_max=np.full(6, 10.0),
         home=[0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0],
-        source="example-robot-data ur_description/urdf/ur5_robot.urdf",
+        source=f"example-robot-data {path}",
     )
 
 
