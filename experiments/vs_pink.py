@@ -105,8 +105,8 @@ class PinkLoop:
 
     The study code (:func:`run_backend`, :func:`markdown_table`, :func:`main`) takes the rival
     library's loop class as a parameter: ``name`` keys its results, ``requirement`` is the module
-    whose absence skips the study, and :meth:`target` converts a ``(4, 4)`` pose into the rival's
-    target type (untimed)."""
+    whose absence skips the study, :meth:`target` converts a ``(4, 4)`` pose into the rival's
+    target type (untimed), and :meth:`problem_notes` adds to the JSON's ``problem``."""
 
     name = "pink"
     requirement = "pink"
@@ -133,6 +133,12 @@ class PinkLoop:
             self.frame_task.set_target(target)
         return self.pink.solve_ik(self.configuration, self.tasks, DT, solver=self.solver,
                                   damping=DAMPING, limits=self.limits)
+
+    @staticmethod
+    def problem_notes() -> dict:
+        """What the JSON's ``problem`` adds about the rival's model: nothing, pink uses wbc's
+        pinocchio model itself."""
+        return {}
 
     @staticmethod
     def target(T: np.ndarray):
@@ -309,9 +315,7 @@ def main(argv: list[str] | None = None, rival: type | None = None) -> int:
     report = {"problem": {"robot": "panda (example-robot-data, fingers locked)", "dt": DT,
                           "frame_gain": FRAME_GAIN, "posture_gain": POSTURE_GAIN,
                           "posture_cost": POSTURE_COST, "limit_gain": LIMIT_GAIN,
-                          "damping": DAMPING, "q0": Q0.tolist(),
-                          **(rival.problem_notes() if hasattr(rival, "problem_notes")
-                             else {})},
+                          "damping": DAMPING, "q0": Q0.tolist(), **rival.problem_notes()},
               "backends": results, "skipped": skipped, "errors": errors, "machine": machine}
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / f"vs_{other}.json"

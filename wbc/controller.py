@@ -382,10 +382,9 @@ def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
         return compiled
     params = dict(compiled.parameters)
     n_p = compiled.defaults.shape[0]
+    needs_v = any(kind == "Jdot_v" for kind, _ in replaced.values())
     appended = []
-    for name, size, needed in (("q", int(robot.nq), True),
-                               ("v", int(robot.nv), any(k == "Jdot_v" for k, _ in
-                                                        replaced.values()))):
+    for name, size, needed in (("q", int(robot.nq), True), ("v", int(robot.nv), needs_v)):
         if needed and name not in params:
             params[name] = (n_p + sum(appended), (size, 1), False)
             appended.append(size)
