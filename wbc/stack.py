@@ -24,6 +24,8 @@ class Parameter:
         symbol: the CasADi symbol (``SX.sym(name, rows, cols)``).
         default: value used until set, or ``None`` (then it must be set before solving).
         allow_inf: bounds may hold ``±inf``; other coefficients may not.
+        quantity: a model quantity (``stack.quantity``): a controller fills it from the robot
+            every tick (see :mod:`wbc.quantities`); otherwise a reference the user sets.
     """
 
     name: str
@@ -31,6 +33,7 @@ class Parameter:
     symbol: ca.SX
     default: np.ndarray | None = None
     allow_inf: bool = False
+    quantity: bool = False
 
     @property
     def size(self) -> int:
@@ -154,6 +157,19 @@ class Stack:
         self.parameters[name] = param
         self._compiled = None
         return param.symbol
+
+    def quantity(self, name: str, shape: int | tuple[int, ...]) -> ca.SX:
+        """Declare (or fetch) a *model quantity*: a parameter that a :class:`~wbc.Controller`
+        fills from its robot every tick — ``"q"``, ``"v"``, ``"dt"`` or a name the robot's
+        quantity registry offers (``"pose[ee]"``, ``"J[ee]"``, ``"Jdot_v[ee]"``, ``"com"``, ...;
+        see :mod:`wbc.quantities`). Outside a controller it is set like any parameter.
+
+        Returns:
+            The CasADi symbol, of ``shape`` (``rows`` or ``(rows, cols)``).
+        """
+        symbol = self.parameter(name, shape)
+        self.parameters[name].quantity = True
+        return symbol
 
     def add(self, task: Task, priority: int = 0, weight: float | ca.SX = 1.0,
             scaling: bool = False) -> Stack:
