@@ -81,10 +81,10 @@ def _acceleration_stack(robot) -> wbc.Stack:
     nq, nv, n_arm = robot.nq, robot.nv, robot.n_arm
     a = wbc.Variables(a=nv)
     stack = wbc.Stack(a, damping=1e-3)
-    J = stack.parameter("J[ee]", (6, nv))
-    drift = stack.parameter("Jdot_v[ee]", 6)
-    pose = stack.parameter("pose[ee]", (4, 4))
-    q, v = stack.parameter("q", nq), stack.parameter("v", nv)
+    J = stack.quantity("J[ee]", (6, nv))
+    drift = stack.quantity("Jdot_v[ee]", 6)
+    pose = stack.quantity("pose[ee]", (4, 4))
+    q, v = stack.quantity("q", nq), stack.quantity("v", nv)
     target = stack.parameter("ee.target", (4, 4))
     Jp = J[:3, :]
     ee_acc = KP * (target[:3, 3] - pose[:3, 3]) - KD * (Jp @ v)

@@ -283,9 +283,9 @@ class FrameTask(Task):
     def terms(self, stack):
         what = f"FrameTask {self.name!r}"
         v = velocity_block(stack, self.block, self.nv, what)
-        pose = stack.parameter(f"pose[{self.frame}]", (4, 4))
-        J = stack.parameter(f"J[{self.frame}]", (6, self.nv))
-        dt = stack.parameter("dt", 1)
+        pose = stack.quantity(f"pose[{self.frame}]", (4, 4))
+        J = stack.quantity(f"J[{self.frame}]", (6, self.nv))
+        dt = stack.quantity("dt", 1)
         target = stack.parameter(f"{self.name}.target", (4, 4))  # no default: must be set
         if self.position_only:
             e = target[:3, 3] - pose[:3, 3]

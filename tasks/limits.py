@@ -60,8 +60,8 @@ class ConfigurationLimit(Task):
 
     def terms(self, stack):
         velocity_block(stack, self.block, self.nv, f"ConfigurationLimit {self.name!r}")
-        q = stack.parameter("q", self.nq)
-        dt = stack.parameter("dt", 1)
+        q = stack.quantity("q", self.nq)
+        dt = stack.quantity("dt", 1)
         lo = stack.parameter(f"{self.name}.lower", self.nq, self.lower, allow_inf=True)
         up = stack.parameter(f"{self.name}.upper", self.nq, self.upper, allow_inf=True)
         k, base = self.n_arm, self.nv - self.n_arm

@@ -83,8 +83,8 @@ class PostureTask(Task):
 
     def terms(self, stack):
         v = velocity_block(stack, self.block, self.nv, f"PostureTask {self.name!r}")
-        q = stack.parameter("q", self.nq)
-        dt = stack.parameter("dt", 1)
+        q = stack.quantity("q", self.nq)
+        dt = stack.quantity("dt", 1)
         target = stack.parameter(f"{self.name}.target", self.nq, self.default_target)
         k = self.n_arm
         e = target[self.nq - k:] - q[self.nq - k:]

@@ -93,6 +93,8 @@ class CompiledStack:
         n_e: rows of the frozen cost-row store; ``n_s``: rows of the frozen soft-row store.
         rank_tol: relative tolerance of the rank compression.
         freeze_tol: half-width of the band frozen rows are kept in (relative).
+        quantities: names of the parameters declared as model quantities
+            (:meth:`wbc.Stack.quantity`), which a controller fills from its robot.
     """
 
     variables: Variables
@@ -103,6 +105,7 @@ class CompiledStack:
     n_s: int
     rank_tol: float
     freeze_tol: float
+    quantities: frozenset[str] = frozenset()
 
     @property
     def n(self) -> int:
@@ -204,7 +207,7 @@ def compile_stack(stack) -> CompiledStack:
                               n_frozen_soft=n_s, n_frozen_cost=n_e, m_frozen_eq=min(n_e, n),
                               scale_index=None))
     return CompiledStack(variables, layout, defaults, tuple(blocks), n_e, n_s, stack.rank_tol,
-                         stack.freeze_tol)
+                         stack.freeze_tol, frozenset(P.name for P in params if P.quantity))
 
 
 def _level_terms(entries, x):

@@ -2,8 +2,10 @@
 
 Model quantities
 ----------------
-Tasks never call the robot. They declare *model-quantity parameters* under canonical names,
-and the controller fills them every tick from one kinematics update:
+Tasks never call the robot. They declare *model quantities* (:meth:`wbc.Stack.quantity`) and
+the controller fills them every tick — ``"q"``, ``"v"`` and ``"dt"`` from its own state, every
+other one from the robot's quantity registry (:mod:`wbc.quantities`; ``robot.quantities``) after
+one kinematics update:
 
 =====================  ===========  ===========================================================
 name                   shape        value
@@ -17,37 +19,34 @@ name                   shape        value
                                     ``LOCAL_WORLD_ALIGNED``): the frame's twist is ``J v``
 ``"Jdot_v[<frame>]"``  ``(6,)``     drift ``J̇ v`` in the same axes (origin's classical
                                     acceleration at zero joint acceleration)
+…                      …            whatever else the robot registers (``"com"``,
+                                    ``"manipulability_gradient[ee]"``, ...)
 =====================  ===========  ===========================================================
 
-With ``Controller(..., kinematics="compiled")`` the poses and Jacobians are computed inside the
-compiled level functions from ``"q"`` instead (same values; see :func:`compiled_kinematics`).
+A parameter declared with ``stack.parameter`` whose name the robot's registry offers is filled
+too (the names above worked that way before quantities were declared). A declared quantity the
+robot does not offer is an :class:`~wbc.UnknownNameError` listing what it offers.
+
+With ``kinematics="compiled"`` (or ``"auto"``, the default) the quantities that have a symbolic
+form are computed inside the compiled level functions from ``"q"`` (and ``"v"``) instead: same
+values, no robot call on the tick (see :func:`compiled_kinematics`).
 
 Every other parameter is a *reference*, set through :meth:`Controller.step`'s keywords: key
 ``k`` sets parameter ``k`` if it exists, else ``"k.target"`` (so ``step(q, ee=T)`` sets the
 target of the task named ``"ee"``). References keep their value until set again.
 
-Robot protocol (duck-typed; the core imports no robot)
-------------------------------------------------------
-* ``robot.nq``, ``robot.nv``;
-* ``robot.update(q, v=None)`` — one kinematics update (placements, Jacobians, and, when
-  ``v`` is given, what the drifts need). The controller passes ``v`` only if the stack uses a
-  drift ``"Jdot_v[...]"``, and skips the update when no frame quantity is left to fill;
-* ``robot.frame_pose(None, frame, out=A)``, ``robot.frame_jacobian(None, frame, "world",
-  out=A)``, ``robot.frame_drift(None, None, frame, out=A)`` — getters that read the last
-  update (``q=None``) and write into ``out`` (an ``(4, 4)``, ``(6, nv)`` or ``(6,)`` view,
-  possibly Fortran-ordered) without allocating where they can;
-* optionally ``robot.has_frame(name)`` and ``robot.frame_names``, for early, clear errors;
-* optionally ``robot.symbolic_frame(frame) -> casadi.Function`` (``q -> (pose, J)``), for
-  ``Controller(..., kinematics="compiled")``: poses and Jacobians are then part of the compiled
-  level functions (JIT-able); with ``robot.symbolic_drift(frame) -> casadi.Function`` (``(q, v)
-  -> J̇v``) the drifts are too, and the tick calls no kinematics at all.
-
-:class:`wbc.robots.fixed_base.FixedBaseRobot` and the mobile manipulators of
-:mod:`wbc.robots` implement it.
+Robot protocol
+--------------
+:class:`wbc.robots.Robot` (the core imports no robot): ``nq``, ``nv``; ``update(q, v=None)`` —
+one kinematics update that the registry's fillers then read (the controller passes ``v`` only
+if a quantity needs it, and skips the update when no quantity is left to fill); ``quantities``
+(a :class:`~wbc.quantities.QuantityRegistry`; a robot without one is served through its
+``frame_pose`` / ``frame_jacobian`` / ``frame_drift`` getters, see
+:func:`wbc.quantities.registry_of`); optionally ``has_frame`` / ``frame_names`` for early errors.
 
 The tick
 --------
-Write ``q``, ``v``, ``dt`` → ``robot.update`` → the frame getters (a loop over the few model
+Write ``q``, ``v``, ``dt`` → ``robot.update`` → the quantity fillers (a loop over the few model
 quantities, never over tasks) → references → ``workspace.solve()`` (one compiled evaluation
 and one warm-started backend solve per priority level) → the fallback policy if the solve
 failed. ``solution.timings.model`` holds the first four steps.
@@ -56,9 +55,7 @@ failed. ``solution.timings.model`` holds the first four steps.
 from __future__ import annotations
 
 import dataclasses
-import re
 import time
-from functools import partial
 
 import casadi as ca
 import numpy as np
@@ -75,13 +72,13 @@ from .errors import (
 )
 from .jit import jit_compiled
 from .qp import Status
+from .quantities import STATE_QUANTITIES, registry_of
 from .solution import Solution
 from .stack import Stack
 from .workspace import BackendSpec, Workspace
 
 FALLBACKS = ("hold", "last", "decelerate", "raise")
 DECELERATION = 0.5  # "decelerate": the previous command's share kept per failed tick
-_FRAME_QUANTITY = re.compile(r"^(pose|J|Jdot_v)\[(.+)\]$")
 
 
 def check_frame(robot, frame: str, what: str) -> None:
@@ -120,16 +117,15 @@ class Controller:
             of the levels above it — every hard constraint and higher task still holds — and
             ``solution.fallback`` is ``"partial"``; only ``"raise"`` raises then too.
         warm_start: warm-start every QP from its previous solution.
-        kinematics: ``"numeric"`` — frame poses and Jacobians come from the robot's getters
-            every tick; ``"compiled"`` — they are computed *inside* the compiled level
-            functions from parameter ``"q"``, with the robot's ``symbolic_frame(frame)``
-            (``q -> (pose, J)`` as a CasADi function) and, for drifts ``"Jdot_v[...]"``, its
-            ``symbolic_drift(frame)`` (``(q, v) -> J̇v``; without it drifts stay numeric): the
-            tick then calls no kinematics at all, and those parameters no longer exist in the
-            workspace (same values to round-off, a ≈ 35 µs shorter tick on the
-            catalogue robots); ``"auto"`` (default) — compiled when the robot offers
-            ``symbolic_frame`` for the stack's frames, else numeric. ``self.kinematics``
-            holds the choice made.
+        kinematics: ``"numeric"`` — model quantities come from the robot's numeric fillers
+            every tick; ``"compiled"`` — those with a symbolic form (frame poses, Jacobians,
+            drifts of the catalogue robots) are computed *inside* the compiled level functions
+            from ``"q"`` (and ``"v"``), see :func:`compiled_kinematics`; the others stay
+            numeric. The tick then calls no kinematics when every quantity is symbolic, and
+            those parameters no longer exist in the workspace (same values to round-off, a
+            ≈ 35 µs shorter tick on the catalogue robots); ``"auto"`` (default) — compiled
+            when the robot offers symbolic forms, else numeric. ``self.kinematics`` holds the
+            choice made.
         jit: evaluate the level functions as compiled C (needs a C compiler; each function is
             built once per machine, 0.1–0.5 s, and cached on disk, see :mod:`wbc.jit`;
             evaluation drops from ≈ 8 µs to ≈ 0.6 µs for a Panda pose + posture level).
@@ -173,13 +169,11 @@ class Controller:
         if kinematics == "compiled":
             self.compiled = compiled_kinematics(self.compiled, robot)
         elif kinematics == "auto":
-            kinematics = "numeric"
-            if hasattr(robot, "symbolic_frame"):
-                try:
-                    self.compiled = compiled_kinematics(self.compiled, robot)
-                    kinematics = "compiled"
-                except WbcError:  # joints the symbolic model does not cover: the getters
-                    pass
+            try:
+                self.compiled = compiled_kinematics(self.compiled, robot)
+                kinematics = "compiled"
+            except WbcError:  # no symbolic forms, or joints they do not cover: the getters
+                kinematics = "numeric"
         self.kinematics = kinematics
         if jit:
             self.compiled = jit_compiled(self.compiled)
@@ -197,37 +191,33 @@ class Controller:
     # ------------------------------------------------------------------ planning
     def _plan(self) -> None:
         """Map every model-quantity parameter to a writer into its view of ``p``."""
-        ws, robot = self.workspace, self.robot
-        for name, (_, shape, _) in self.compiled.parameters.items():
-            expected = None
-            if name == "q":
-                expected, self._q = (self.nq, 1), ws.view(name).reshape(-1)
-            elif name == "v":
-                expected, self._v = (self.nv, 1), ws.view(name).reshape(-1)
-                self._needs_v = True
-            elif name == "dt":
-                expected, self._dt = (1, 1), ws.view(name).reshape(-1)
-            else:
-                match = _FRAME_QUANTITY.match(name)
-                if match is None:
-                    continue
-                kind, frame = match.groups()
-                check_frame(self.robot, frame, f"parameter {name!r}")
-                view = ws.view(name)
-                if kind == "pose":
-                    expected = (4, 4)
-                    self._fillers.append(partial(robot.frame_pose, None, frame, out=view))
-                elif kind == "J":
-                    expected = (6, self.nv)
-                    self._fillers.append(
-                        partial(robot.frame_jacobian, None, frame, "world", out=view))
+        ws, compiled = self.workspace, self.compiled
+        registry = registry_of(self.robot)
+        state_shapes = {"q": (self.nq, 1), "v": (self.nv, 1), "dt": (1, 1)}
+        for name, (_, shape, _) in compiled.parameters.items():
+            if name in STATE_QUANTITIES:
+                expected = state_shapes[name]
+                view = ws.view(name).reshape(-1)
+                if name == "q":
+                    self._q = view
+                elif name == "v":
+                    self._v, self._needs_v = view, True
                 else:
-                    expected = (6, 1)
+                    self._dt = view
+            else:
+                if name in compiled.quantities:
+                    quantity = registry.get(name)
+                else:  # a plain parameter the robot happens to offer (names before quantities)
+                    quantity = registry.resolve(name)
+                    if quantity is None:
+                        continue
+                expected = quantity.shape
+                view = ws.view(name)
+                if quantity.needs_v:
                     self._needs_v = self._needs_drift = True
-                    self._fillers.append(
-                        partial(robot.frame_drift, None, None, frame, out=view.reshape(-1)))
+                self._fillers.append((quantity.fill, view))
             if shape != expected:
-                raise ShapeError(f"model parameter {name!r} is declared with shape {shape}, "
+                raise ShapeError(f"model quantity {name!r} is declared with shape {shape}, "
                                  f"but the robot gives {expected}")
             self.model_parameters.append(name)
         self._zero_v = np.zeros(self.nv)
@@ -315,8 +305,8 @@ class Controller:
                 self._v[:] = v
         if self._fillers:
             self.robot.update(q, v if self._needs_drift else None)
-            for fill in self._fillers:
-                fill()
+            for fill, view in self._fillers:
+                fill(view)
         if references:
             self.set_references(**references)
         t1 = time.perf_counter()
@@ -363,26 +353,36 @@ class Controller:
 
 
 def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
-    """A copy of ``compiled`` whose level functions compute ``"pose[<frame>]"`` and
-    ``"J[<frame>]"`` from parameter ``"q"`` with ``robot.symbolic_frame(frame)``, and
-    ``"Jdot_v[<frame>]"`` from ``"q"`` and ``"v"`` with ``robot.symbolic_drift(frame)`` when the
-    robot has it. Those parameters leave the layout; ``"q"`` and ``"v"`` are appended if the
-    stack needs them and had none."""
-    symbolic = getattr(robot, "symbolic_frame", None)
-    if symbolic is None:
-        raise WbcError(f"kinematics='compiled' needs robot.symbolic_frame(frame) -> "
-                       f"casadi.Function(q -> (pose, J)); {type(robot).__name__} has none")
-    drift = getattr(robot, "symbolic_drift", None)
-    replaced = {}  # parameter name -> (kind, frame)
+    """A copy of ``compiled`` whose level functions compute every model quantity that has a
+    symbolic form (``robot.quantities``, e.g. ``"pose[<frame>]"``, ``"J[<frame>]"``,
+    ``"Jdot_v[<frame>]"``) from parameters ``"q"`` (and ``"v"`` for quantities that need it)
+    inside the compiled functions. Those parameters leave the layout; ``"q"`` and ``"v"`` are
+    appended if the stack needs them and had none.
+
+    Raises:
+        WbcError: no quantity of the stack has a symbolic form on this robot.
+    """
+    registry = registry_of(robot)
+    replaced, numeric_only = {}, []  # parameter name -> Quantity; names without symbolic form
     for name in compiled.parameters:
-        match = _FRAME_QUANTITY.match(name)
-        if match is not None and (match.group(1) != "Jdot_v" or drift is not None):
-            replaced[name] = match.groups()
+        if name in STATE_QUANTITIES:
+            continue
+        quantity = (registry.get(name) if name in compiled.quantities else
+                    registry.resolve(name))
+        if quantity is not None:
+            if quantity.symbolic is not None:
+                replaced[name] = quantity
+            else:
+                numeric_only.append(name)
     if not replaced:
+        if numeric_only:
+            raise WbcError(f"kinematics='compiled' needs symbolic forms of the model quantities "
+                           f"{numeric_only} (e.g. robot.symbolic_frame(frame) -> "
+                           f"casadi.Function); {type(robot).__name__} offers none")
         return compiled
     params = dict(compiled.parameters)
     n_p = compiled.defaults.shape[0]
-    needs_v = any(kind == "Jdot_v" for kind, _ in replaced.values())
+    needs_v = any(quantity.needs_v for quantity in replaced.values())
     appended = []
     for name, size, needed in (("q", int(robot.nq), True), ("v", int(robot.nv), needs_v)):
         if needed and name not in params:
@@ -395,20 +395,15 @@ def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
         offset, (rows, _), _ = params[name]
         return p[offset:offset + rows]
 
-    q = column("q")
     entries = [p[i] for i in range(n_p)]
-    for name, (kind, frame) in replaced.items():
+    for name, quantity in replaced.items():
         offset, shape, _ = params.pop(name)
-        if kind == "Jdot_v":
-            value = drift(frame)(q, column("v"))
-            source = f"robot.symbolic_drift({frame!r})"
-        else:
-            pose, J = symbolic(frame)(q)
-            value = pose if kind == "pose" else J
-            source = f"robot.symbolic_frame({frame!r})"
+        function = quantity.symbolic()
+        inputs = [column("q"), column("v")] if quantity.needs_v else [column("q")]
+        value = function(*inputs)
         if value.shape != shape:
-            raise ShapeError(f"{source} gives {kind} of shape {value.shape}, the stack "
-                             f"declares {shape}")
+            raise ShapeError(f"the symbolic form of {name!r} gives shape {value.shape}, the "
+                             f"stack declares {shape}")
         for c in range(shape[1]):
             for r in range(shape[0]):
                 entries[offset + c * shape[0] + r] = value[r, c]
@@ -419,5 +414,8 @@ def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
         outputs = fn.call([p_in])
         new = ca.Function(f"{fn.name()}_kin", [p], outputs, fn.name_in(), fn.name_out())
         blocks.append(dataclasses.replace(block, function=new))
+    quantities = compiled.quantities - replaced.keys()
+    if appended:
+        quantities = quantities | {"q"} | ({"v"} if needs_v else set())
     return dataclasses.replace(compiled, parameters=params, defaults=defaults,
-                               blocks=tuple(blocks))
+                               blocks=tuple(blocks), quantities=frozenset(quantities))

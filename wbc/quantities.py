@@ -157,3 +157,42 @@ class QuantityRegistry:
             return self.resolve(name) is not None
         except UnknownNameError:
             return False
+
+
+def registry_of(robot) -> QuantityRegistry:
+    """``robot.quantities``, or — for a robot written to the older, getter-only protocol — a
+    registry offering ``pose[<frame>]``, ``J[<frame>]`` and ``Jdot_v[<frame>]`` through its
+    ``frame_pose`` / ``frame_jacobian`` / ``frame_drift`` getters (and ``symbolic_frame`` /
+    ``symbolic_drift`` when it has them)."""
+    registry = getattr(robot, "quantities", None)
+    if isinstance(registry, QuantityRegistry):
+        return registry
+    registry = QuantityRegistry()
+    names = getattr(robot, "frame_names", None)
+    arguments = (lambda: list(robot.frame_names)) if names is not None else None
+    nv = int(robot.nv)
+    symbolic_frame = getattr(robot, "symbolic_frame", None)
+    symbolic_drift = getattr(robot, "symbolic_drift", None)
+
+    def frame_output(index: int):
+        if symbolic_frame is None:
+            return None
+
+        def build(frame: str) -> ca.Function:
+            function = symbolic_frame(frame)
+            q = ca.SX.sym("q", function.size1_in(0))
+            return ca.Function(f"{function.name()}_{index}", [q], [function(q)[index]])
+        return build
+
+    registry.register("pose", argument="frame", arguments=arguments, shape=lambda f: (4, 4),
+                      fill=lambda f, out: robot.frame_pose(None, f, out=out),
+                      symbolic=frame_output(0), doc="world pose (4, 4) [m]")
+    registry.register("J", argument="frame", arguments=arguments, shape=lambda f: (6, nv),
+                      fill=lambda f, out: robot.frame_jacobian(None, f, "world", out=out),
+                      symbolic=frame_output(1),
+                      doc="frame Jacobian (6, nv), rows [linear; angular], world axes")
+    registry.register("Jdot_v", argument="frame", arguments=arguments, shape=lambda f: (6, 1),
+                      fill=lambda f, out: robot.frame_drift(None, None, f, out=out.reshape(-1)),
+                      needs_v=True, symbolic=symbolic_drift,
+                      doc="drift J̇v (6,) [m/s², rad/s²], world axes")
+    return registry

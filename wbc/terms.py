@@ -17,16 +17,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 
 from .checks import check_finite
 from .errors import ShapeError
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .stack import Stack
 
 Expr = ca.SX | np.ndarray | float | int
 
@@ -65,13 +61,15 @@ def as_sx_column(value: Expr, rows: int | None, what: str, allow_inf: bool = Fal
 class Task:
     """Base class of everything that can be added to a stack.
 
-    A task turns itself into terms when added: :meth:`terms` receives the stack, whose
-    ``variables`` and :meth:`~wbc.Stack.parameter` it may use to create its symbols.
+    A task turns itself into terms when added: :meth:`terms` receives the
+    :class:`~wbc.Stack`, whose ``variables``, :meth:`~wbc.Stack.parameter` and
+    :meth:`~wbc.Stack.quantity` it may use to create its symbols. (The stack is not annotated:
+    ``wbc.stack`` imports this module, and the core keeps its imports one-way.)
     """
 
     name: str | None = None
 
-    def terms(self, stack: Stack) -> Sequence[Term]:
+    def terms(self, stack) -> Sequence[Term]:
         raise NotImplementedError
 
     def __repr__(self) -> str:
@@ -81,7 +79,7 @@ class Task:
 class Term(Task):
     """A single affine term; it is its own task."""
 
-    def terms(self, stack: Stack) -> Sequence[Term]:
+    def terms(self, stack) -> Sequence[Term]:
         return [self]
 
 

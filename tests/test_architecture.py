@@ -1,0 +1,94 @@
+"""The core's imports point one way: no module of ``wbc/`` imports one that imports it back, and
+``import wbc`` loads no robot, solver or experiment module."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+CORE = Path(__file__).resolve().parents[1] / "wbc"
+
+
+def module_name(path: Path, root: Path) -> str:
+    parts = path.relative_to(root.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imported_modules(path: Path, root: Path, known: set[str]) -> set[str]:
+    """The modules of ``known`` that ``path`` imports, at any place in the file (lazy imports
+    inside functions and ``TYPE_CHECKING`` blocks count: they are cycles all the same)."""
+    name = module_name(path, root)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parent = package.split(".")
+                parent = parent[:len(parent) - node.level + 1]
+                base = ".".join(parent + ([base] if base else []))
+            targets = [base] + [f"{base}.{alias.name}" for alias in node.names]
+        else:
+            continue
+        found.update(t for t in targets if t in known and t != name)
+    return found
+
+
+def import_graph(root: Path) -> dict[str, set[str]]:
+    """``module -> modules of the package at root it imports``."""
+    files = sorted(root.rglob("*.py"))
+    known = {module_name(f, root) for f in files}
+    graph = {module_name(f, root): imported_modules(f, root, known) for f in files}
+    # a package's __init__ re-exporting its submodules is how a package is made, not a cycle
+    for package in [m for m in graph if any(k.startswith(m + ".") for k in graph)]:
+        graph[package] = {m for m in graph[package] if not m.startswith(package + ".")}
+    return graph
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[str]:
+    cycles = []
+    for start in graph:
+        stack, seen = [(start, [start])], set()
+        while stack:
+            node, path = stack.pop()
+            for nxt in graph[node]:
+                if nxt == start:
+                    cycles.append(" -> ".join(path + [start]))
+                elif nxt not in seen:
+                    seen.add(nxt)
+                    stack.append((nxt, path + [nxt]))
+    return sorted(set(cycles))
+
+
+def test_core_modules_import_in_one_direction():
+    graph = import_graph(CORE)
+    assert "wbc.stack" in graph and "wbc.sim.simulation" in graph
+    assert not import_cycles(graph), f"import cycles in wbc/: {import_cycles(graph)}"
+
+
+def test_the_cycle_check_finds_a_cycle(tmp_path):
+    """The check above can fail: two modules importing each other (one lazily) are reported,
+    a package importing its own submodules is not."""
+    package = tmp_path / "pkg"
+    package.mkdir()
+    (package / "__init__.py").write_text("from .a import x\n")
+    (package / "a.py").write_text("from . import b\nx = 1\n")
+    (package / "b.py").write_text("def f():\n    from .a import x\n")
+    graph = import_graph(package)
+    assert graph == {"pkg": set(), "pkg.a": {"pkg", "pkg.b"}, "pkg.b": {"pkg.a"}}
+    assert import_cycles(graph)
+
+
+def test_import_wbc_loads_no_robot_solver_or_experiment():
+    code = ("import sys, wbc, wbc.sim\n"
+            "bad = [m for m in sys.modules if m.startswith(('wbc.robots', 'wbc.solvers', "
+            "'wbc.experiments', 'wbc.tasks', 'pinocchio', 'daqp', 'proxsuite', 'osqp', "
+            "'clarabel', 'quadprog', 'qpsolvers'))]\n"
+            "print(','.join(bad))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "", f"import wbc loaded {out}"
