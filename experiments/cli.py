@@ -1,7 +1,9 @@
-"""The ``wbc`` command line: ``wbc list``, ``wbc demo``, ``wbc bench``, ``wbc pink``, ``wbc mink``.
+"""The ``wbc`` command line: ``wbc list``, ``wbc demo``, ``wbc bench``, ``wbc pink``, ``wbc mink``,
+``wbc study NAME``.
 
 Each sub-command forwards its remaining arguments to the ``main(argv)`` of its experiment
-module, so ``wbc bench --help`` shows that study's own options.
+module, so ``wbc bench --help`` shows that study's own options; ``wbc study NAME ...`` forwards
+to the paper study ``wbc.experiments.NAME`` (see :mod:`wbc.experiments.study`).
 """
 
 from __future__ import annotations
@@ -17,6 +19,30 @@ COMMANDS = {
     "pink": ("wbc.experiments.vs_pink", "head-to-head with pink on the Panda"),
     "mink": ("wbc.experiments.vs_mink", "head-to-head with mink on the Panda"),
 }
+
+
+STUDIES = {
+    "sorour": "Sorour et al.: ψ task sharing on a steerable base (MPO700 + LWR-IV)",
+    "petric": "Petrič & Žlajpah: velocity field for a differential-drive base (Tiago)",
+    "omni": "omni platform: slip-avoiding wheel-torque distribution",
+    "xing": "Xing et al.: adaptive motion planning at the acceleration level (mecanum + Gen3)",
+}
+
+
+def run_study(argv: list[str]) -> int:
+    """``wbc study NAME [options]``: one paper study (``wbc study NAME --help`` for options)."""
+    if not argv or argv[0] in ("-h", "--help"):
+        print("usage: wbc study NAME [--backend B] [--out DIR] [--quick]\n\nstudies:")
+        for name, what in STUDIES.items():
+            print(f"  {name:8s} {what}")
+        return 0 if argv else 2
+    name, rest = argv[0], argv[1:]
+    if name not in STUDIES:
+        print(f"wbc study: unknown study {name!r}; studies: {', '.join(STUDIES)}",
+              file=sys.stderr)
+        return 2
+    module = importlib.import_module(f"wbc.experiments.{name}")
+    return module.main(rest)
 
 
 def list_everything() -> int:
@@ -39,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("list", help="robots, tasks and available backends")
     for name, (_, help_text) in COMMANDS.items():
         sub.add_parser(name, help=help_text, add_help=False)
+    sub.add_parser("study", help=f"rerun a paper study: {', '.join(STUDIES)}", add_help=False)
     args, rest = parser.parse_known_args(argv)
     if args.command is None:
         parser.print_help()
@@ -47,6 +74,8 @@ def main(argv: list[str] | None = None) -> int:
         if rest:
             parser.error(f"unrecognized arguments: {' '.join(rest)}")
         return list_everything()
+    if args.command == "study":
+        return run_study(rest)
     module = importlib.import_module(COMMANDS[args.command][0])
     return module.main(rest)
 

@@ -1,0 +1,64 @@
+"""The output contract every paper study keeps (wbc.experiments.study)."""
+
+from __future__ import annotations
+
+import json
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from wbc.experiments.study import (  # noqa: E402
+    Claim,
+    StudyResult,
+    save_figure,
+    study_main,
+    timing_summary,
+)
+
+
+def fake_run(backend, out_dir, quick):
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1])
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("error [m]")
+    figure = save_figure(fig, out_dir / "error.png")
+    error = np.array([0.3, 0.1, np.nan])
+    return StudyResult(
+        "fake", [Claim("drops", "the error drops", 0.5, float(error[1] / error[0]),
+                       np.bool_(error[1] < error[0]), "ratio of the two samples")],
+        runs={"line": {"daqp": {"t": np.arange(3) * 0.1, "ee_error": error}}},
+        timing={backend: timing_summary([1e-5, 2e-5, 3e-5])}, figures=[figure],
+        summary_md="A fake study.", parameters={"quick": quick})
+
+
+def test_study_main_writes_the_contract(tmp_path, capsys):
+    assert study_main("fake", fake_run, ["--out", str(tmp_path), "--quick"]) == 0
+    data = json.loads((tmp_path / "fake" / "fake.json").read_text())
+    assert {"claims", "runs", "timing", "machine", "parameters", "summary"} <= set(data)
+    claim = data["claims"][0]
+    assert set(claim) == {"id", "statement", "paper", "ours", "holds", "note"}
+    assert claim["holds"] is True and claim["ours"] == pytest.approx(1 / 3)
+    assert data["runs"]["line"]["daqp"]["ee_error"] == [0.3, 0.1, None]  # NaN has no JSON form
+    assert data["timing"]["daqp"] == {"tick_median_s": 2e-5, "tick_p95_s": pytest.approx(2.9e-5),
+                                      "ticks": 3}
+    assert (tmp_path / "fake" / "error.png").stat().st_size > 0
+    markdown = (tmp_path / "fake" / "fake.md").read_text()
+    assert "1 of 1 claims reproduced" in markdown and "![error.png](error.png)" in markdown
+    assert "the error drops" in capsys.readouterr().out
+
+
+def test_bad_arguments_and_unlabelled_figures_are_refused(tmp_path):
+    with pytest.raises(SystemExit) as exit_info:
+        study_main("fake", fake_run, ["--backend", "nosuch"])
+    assert exit_info.value.code == 2
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1])
+    ax.set_xlabel("t [s]")
+    with pytest.raises(ValueError, match="y label"):
+        save_figure(fig, tmp_path / "bad.png")
+    with pytest.raises(ValueError):
+        timing_summary([])
