@@ -18,6 +18,8 @@ COMMANDS = {
               "backends"),
     "pink": ("wbc.experiments.vs_pink", "head-to-head with pink on the Panda"),
     "mink": ("wbc.experiments.vs_mink", "head-to-head with mink on the Panda"),
+    "reproduce": ("wbc.experiments.reproduce", "every paper study, bench and peers in one "
+                  "report (REPORT.md)"),
 }
 
 

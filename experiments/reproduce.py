@@ -1,0 +1,226 @@
+"""``wbc reproduce``: every paper study, the solver-timing study and the peer comparisons, in one
+report (``OUT/REPORT.md``, figures beside it).
+
+Steps, each run in this process through its own command-line entry point with its output
+captured in ``OUT/logs/<step>.log``: the four paper studies (``wbc study NAME``), ``wbc bench``
+and the head-to-heads with the peers (``wbc pink``, ``wbc mink``, ``wbc placo``; a peer that is
+not installed is reported as skipped with its install hint). A step that fails does not stop the
+others: the report says what failed and why (the log's last lines). ``--quick`` shortens every
+step (short horizons, few ticks, one backend for the peers) so that the whole command runs in
+about a minute, for CI; its timings are not meant to be read.
+
+The report: an opening summary (claims reproduced per paper, failures), one section per paper
+with its claims table and figures, the timing tables of ``wbc bench``, the peer table, the
+machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import importlib
+import importlib.util
+import io
+import json
+import shutil
+import sys
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+from .machine import describe_machine
+from .progress import report_progress
+
+PAPERS = {"sorour": "Sorour, Cherubini, Fraisse — steerable wheeled mobile manipulation",
+          "petric": "Petrič, Žlajpah — spatially modulated velocity fields",
+          "omni": "Omnidirectional platform with torque redundancy — slip-avoiding distribution",
+          "xing": "Xing et al. — adaptive motion planning (AMP)"}
+PEERS = {"pink": ("wbc.experiments.vs_pink", "pink", "pip install 'wbc[pink]'"),
+         "mink": ("wbc.experiments.vs_mink", "mink", "pip install 'wbc[mink]'"),
+         "placo": ("wbc.experiments.vs_placo", "placo", "pip install 'wbc[placo]'")}
+
+
+@dataclass
+class Step:
+    """One piece of the reproduction."""
+
+    name: str
+    module: str
+    argv: list[str]
+    requires: str | None = None  # an importable package the step needs (a peer)
+    hint: str = ""
+    status: str = "pending"  # "ok", "failed", "skipped"
+    reason: str = ""
+    seconds: float = 0.0
+
+
+def plan(out: Path, quick: bool) -> list[Step]:
+    """The steps of a full (or ``quick``) reproduction writing into ``out``."""
+    steps = [Step(f"study {name}", f"wbc.experiments.{name}",
+                  ["--out", str(out), *(["--quick"] if quick else [])]) for name in PAPERS]
+    bench = (["--robots", "mecanum_gen3", "--stacks", "one_level", "three_levels", "--ticks",
+              "60", "--warmup", "5", "--scaling-ticks", "20", "--scaling-joints", "7", "30"]
+             if quick else ["--ticks", "500", "--scaling-ticks", "200"])
+    steps.append(Step("bench", "wbc.experiments.solver_timing",
+                      [*bench, "--out", str(out / "bench")]))
+    for peer, (module, package, hint) in PEERS.items():
+        ticks = ["--ticks", "150", "--backends", "daqp"] if quick else ["--ticks", "3000"]
+        steps.append(Step(peer, module, [*ticks, "--out", str(out / f"vs_{peer}")], package,
+                          hint))
+    return steps
+
+
+def run_step(step: Step, log_dir: Path) -> None:
+    """Run one step, capturing its output; never raises."""
+    log = log_dir / f"{step.name.replace(' ', '_')}.log"
+    if step.requires and importlib.util.find_spec(step.requires) is None:
+        step.status, step.reason = "skipped", f"{step.requires} is not installed ({step.hint})"
+        log.write_text(step.reason + "\n")
+        return
+    buffer = io.StringIO()
+    started = time.perf_counter()
+    try:
+        with contextlib.redirect_stdout(buffer), contextlib.redirect_stderr(buffer):
+            code = importlib.import_module(step.module).main(step.argv)
+        step.status = "ok" if code in (0, None) else "failed"
+        if step.status == "failed":
+            step.reason = f"exit code {code}: {_last_line(buffer.getvalue())}"
+    except SystemExit as exit_:  # argparse errors
+        step.status, step.reason = "failed", f"exit {exit_.code}: {_last_line(buffer.getvalue())}"
+    except Exception as err:  # one failing step must not lose the others
+        buffer.write(traceback.format_exc())
+        step.status, step.reason = "failed", f"{type(err).__name__}: {err}"
+    step.seconds = time.perf_counter() - started
+    log.write_text(buffer.getvalue())
+
+
+def _last_line(text: str) -> str:
+    lines = [line for line in text.strip().splitlines() if line.strip()]
+    return lines[-1][:300] if lines else "(no output)"
+
+
+# ---------------------------------------------------------------------------- the report
+def _read_json(path: Path) -> dict | None:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _paper_section(name: str, out: Path, step: Step) -> tuple[list[str], tuple[int, int] | None]:
+    lines = [f"## {PAPERS[name]} (`wbc study {name}`)", ""]
+    data = _read_json(out / name / f"{name}.json")
+    if step.status != "ok" or data is None:
+        lines += [f"**Not reproduced: the study failed** — {step.reason or 'no JSON written'} "
+                  f"(log: `logs/{step.name.replace(' ', '_')}.log`).", ""]
+        return lines, None
+    claims = data["claims"]
+    held = sum(bool(c["holds"]) for c in claims)
+    lines += [f"{held} of {len(claims)} claims reproduced ({step.seconds:.0f} s).", "",
+              "| claim | paper | ours | holds | note |", "|---|---|---|:---:|---|"]
+    for c in claims:
+        lines.append(f"| {c['statement']} | {_cell(c['paper'])} | {_cell(c['ours'])} | "
+                     f"{'yes' if c['holds'] else '**no**'} | {c.get('note', '')} |")
+    timing = data.get("timing") or {}
+    if timing:
+        lines += ["", "| backend | tick median [µs] | tick p95 [µs] |", "|---|---:|---:|"]
+        for backend, t in timing.items():
+            lines.append(f"| {backend} | {1e6 * t['tick_median_s']:.1f} | "
+                         f"{1e6 * t['tick_p95_s']:.1f} |")
+    for figure in data.get("figures", [])[:3]:
+        lines += ["", f"![{figure}]({name}/{figure})"]
+    lines.append("")
+    return lines, (held, len(claims))
+
+
+def _cell(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, dict):
+        return ", ".join(f"{k}: {_cell(v)}" for k, v in value.items())
+    return str(value)
+
+
+def _peer_rows(out: Path, steps: dict[str, Step]) -> list[str]:
+    lines = ["## Peers", "", "Same Panda problem (frame task, posture, position and velocity "
+             "limits), ticks interleaved in one process; ratio = wbc tick / peer tick.", "",
+             "| peer | backend | wbc median [µs] | peer median [µs] | wbc / peer |",
+             "|---|---|---:|---:|---:|"]
+    for peer in PEERS:
+        step = steps[peer]
+        data = _read_json(out / f"vs_{peer}" / f"vs_{peer}.json")
+        if step.status != "ok" or data is None:
+            lines.append(f"| {peer} | — | — | — | {step.status}: {step.reason} |")
+            continue
+        for backend, r in data.get("backends", {}).items():
+            lines.append(f"| {peer} | {backend} | {1e6 * r['wbc_median_s']:.1f} | "
+                         f"{1e6 * r[f'{peer}_median_s']:.1f} | {r['ratio']:.3f} |")
+    return lines + [""]
+
+
+def write_report(out: Path, steps: list[Step], quick: bool) -> Path:
+    by_name = {s.name: s for s in steps}
+    sections, summary = [], []
+    for name in PAPERS:
+        lines, counts = _paper_section(name, out, by_name[f"study {name}"])
+        sections += lines
+        summary.append(f"- **{name}**: " + (f"{counts[0]} of {counts[1]} claims reproduced"
+                                            if counts else "study failed"))
+    bench = out / "bench" / "solver_timing.md"
+    sections += ["## Solver timing (`wbc bench`)", ""]
+    if by_name["bench"].status == "ok" and bench.exists():
+        sections += [bench.read_text(), ""]
+    else:
+        sections += [f"**Failed**: {by_name['bench'].reason}", ""]
+    sections += _peer_rows(out, by_name)
+    failed = [s for s in steps if s.status == "failed"]
+    skipped = [s for s in steps if s.status == "skipped"]
+    machine = describe_machine()
+    head = ["# wbc — reproduction report", "",
+            f"Machine: {machine['cpu']}, {machine['cores']} cores, {machine['platform']}, "
+            f"Python {machine['python']}." + (" **Quick run: short horizons, timings not "
+                                               "meaningful.**" if quick else ""), "",
+            "## Summary", "", *summary]
+    if failed:
+        head += ["", "Failed steps:", *[f"- `{s.name}`: {s.reason}" for s in failed]]
+    if skipped:
+        head += ["", "Skipped:", *[f"- `{s.name}`: {s.reason}" for s in skipped]]
+    head += ["", "| step | status | time [s] |", "|---|---|---:|",
+             *[f"| {s.name} | {s.status} | {s.seconds:.1f} |" for s in steps], ""]
+    report = out / "REPORT.md"
+    report.write_text("\n".join(head + sections) + "\n")
+    return report
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="wbc reproduce",
+        description="Run every paper study, the solver-timing study and the peer comparisons; "
+                    "write OUT/REPORT.md.")
+    parser.add_argument("--out", type=Path, default=Path("results"),
+                        help="output folder (default: results)")
+    parser.add_argument("--quick", action="store_true",
+                        help="short horizons and few ticks (about a minute; for CI)")
+    args = parser.parse_args(argv)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    args.out.mkdir(parents=True, exist_ok=True)
+    log_dir = args.out / "logs"
+    shutil.rmtree(log_dir, ignore_errors=True)
+    log_dir.mkdir()
+    steps = plan(args.out, args.quick)
+    started = time.perf_counter()
+    for done, step in enumerate(steps, start=1):
+        run_step(step, log_dir)
+        report_progress(done, len(steps), f"{step.name}: {step.status} ({step.seconds:.0f} s)")
+    report = write_report(args.out, steps, args.quick)
+    failed = [s.name for s in steps if s.status == "failed"]
+    print(f"wrote {report} in {time.perf_counter() - started:.0f} s"
+          + (f"; failed: {', '.join(failed)}" if failed else ""))
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
