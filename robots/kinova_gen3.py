@@ -19,10 +19,13 @@ They agree to 0.2 mm with the classic Denavit–Hartenberg table of Kinova's Gen
 base twist π), which the tests check. At Xing et al.'s ``q = [0, π/6, 0, π/2, 0, −π/6, 0]`` the
 flange is at (0.65, −0.0246, 0.4921) m in the arm's base frame — the paper's start position.
 
-Limits (Kinova Gen3 user guide): joints 2, 4, 6 within ±128.9°, ±147.8°, ±120.3°; joints
-1, 3, 5, 7 are continuous (infinite limits); velocities 1.3963 rad/s (joints 1–4) and
-1.2218 rad/s (joints 5–7). Xing et al.'s Table 1 was not available to us; acceleration limits
-are assumed 5.2 rad/s² (joints 1–4) and 10.0 rad/s² (joints 5–7).
+Limits: Xing et al.'s Table 1, joints 4–10 (the arm's joints 1–7), the limits their planner
+used on this arm: positions ±∞, ±2.2, ±∞, ±2.5, ±∞, ±2.0, ±∞ rad (joints 2, 4, 6 a little
+inside the user guide's ±128.9°, ±147.8°, ±120.3° = ±2.25, ±2.58, ±2.10 rad; joints 1, 3, 5,
+7 continuous); velocities ±1.75 rad/s (joints 1–4) and ±3.14 rad/s (joints 5–7); accelerations
+±3.0 rad/s² (joints 1–4) and ±5.0 rad/s² (joints 5–7). The user guide gives lower velocity
+limits (1.3963 and 1.2218 rad/s); the paper's are what its planner enforced, so they are the
+ones this model carries.
 """
 
 from __future__ import annotations
@@ -123,8 +126,7 @@ def kinova_gen3() -> Arm:
         )
         for k, (joint, (link, mass, com, moments)) in enumerate(zip(_JOINTS, _LINKS, strict=True))
     ]
-    deg = math.pi / 180.0
-    q_max = np.array([np.inf, 128.9 * deg, np.inf, 147.8 * deg, np.inf, 120.3 * deg, np.inf])
+    q_max = np.array([np.inf, 2.2, np.inf, 2.5, np.inf, 2.0, np.inf])  # Xing et al., Table 1
     name, mass, com, moments = _BASE_LINK
     return build_serial_arm(
         "kinova_gen3",
@@ -135,8 +137,8 @@ def kinova_gen3() -> Arm:
         tool_placement=_placement(*_TOOL),
         q_lower=-q_max,
         q_upper=q_max,
-        v_max=[1.3963] * 4 + [1.2218] * 3,
-        a_max=[5.2] * 4 + [10.0] * 3,
+        v_max=[1.75] * 4 + [3.14] * 3,
+        a_max=[3.0] * 4 + [5.0] * 3,
         home=np.array(XING_Q0_ARM),
         source="Kinova Gen3 7-DoF joint origins and inertias (Kinova ros_kortex description)",
     )

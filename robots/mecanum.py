@@ -93,8 +93,16 @@ def mecanum_base() -> MecanumBase:
     The base frame of this model lies **on the arm's mounting plane**, 0.30 m above the floor
     (so that Xing et al.'s start position [0.65, −0.0246, 0.4921] m is expressed in it, see
     :mod:`wbc.robots.catalogue`); the body is a box 0.64 × 0.50 × 0.30 m filling the space
-    below it. Limits (not in the paper's Table 1 as available to us): 1.0 m/s, 1.0 rad/s,
-    1.0 m/s², 1.0 rad/s².
+    below it.
+
+    Limits: Xing et al.'s Table 1, joints 1–3 (the base). The paper models the base as
+    prismatic x, y and revolute θ joints with ±0.25 m/s, ±0.25 m/s, ±1.0 rad/s and ±0.025 m/s²,
+    ±0.025 m/s², ±1.5 rad/s² (positions unbounded). Our base velocity coordinates are the
+    body twist ``(v_x, v_y, ω)`` in the base frame, not the world rates ``(ẋ, ẏ, θ̇)``: the
+    paper's x / y numbers are applied to ``v_x`` / ``v_y``. Both boxes coincide at θ = 0 (the
+    paper's start, where its base frame is the world frame) and for ω; at other headings the
+    body box is the world box rotated by θ (the paper's bounds on ẋ, ẏ allow up to √2 · 0.25 m/s
+    along a diagonal of the world, ours along a diagonal of the base).
     """
     return MecanumBase(
         radius=0.076,
@@ -104,6 +112,6 @@ def mecanum_base() -> MecanumBase:
         mass=40.0,
         com=[0.0, 0.0, -0.15],
         inertia=box_inertia(40.0, 0.64, 0.50, 0.30),
-        v_max=[1.0, 1.0, 1.0],
-        a_max=[1.0, 1.0, 1.0],
+        v_max=[0.25, 0.25, 1.0],  # Xing et al., Table 1, joints 1-3
+        a_max=[0.025, 0.025, 1.5],
     )
