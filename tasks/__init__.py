@@ -7,3 +7,6 @@ from .posture import PostureTask
 
 __all__ = ["Bounds", "ConfigurationLimit", "FrameTask", "LinearConstraint", "LinearTask",
            "PostureTask", "VelocityLimit"]
+from .joint_acceleration import JointAccelerationLimit, joint_acceleration_bounds  # noqa: E402
+
+__all__ += ["JointAccelerationLimit", "joint_acceleration_bounds"]
