@@ -9,10 +9,12 @@ function per priority level, and solved every tick by a swappable, persistent QP
 from .compiler import CompiledStack
 from .controller import Controller
 from .errors import (
+    BackendError,
     BackendUnavailableError,
     BoundsOrderError,
     InfeasibleError,
     InvalidValueError,
+    MissingDependencyError,
     NonAffineError,
     NonFiniteError,
     ShapeError,
@@ -29,9 +31,10 @@ from .workspace import Workspace
 __version__ = "0.1.0"
 
 __all__ = [
-    "Backend", "BackendUnavailableError", "BoundsOrderError", "CompiledStack", "Controller",
-    "Cost", "Equality", "InfeasibleError", "Inequality", "InvalidValueError", "LevelResult",
-    "NonAffineError", "NonFiniteError", "Parameter", "QPResult", "ShapeError", "Solution",
+    "Backend", "BackendError", "BackendUnavailableError", "BoundsOrderError", "CompiledStack",
+    "Controller", "Cost", "Equality", "InfeasibleError", "Inequality", "InvalidValueError",
+    "LevelResult", "MissingDependencyError", "NonAffineError", "NonFiniteError", "Parameter",
+    "QPResult", "ShapeError", "Solution",
     "Stack", "Status",
     "Task", "Term", "Timings", "UnknownNameError", "VariableBounds", "Variables", "WbcError",
     "Workspace",

@@ -44,3 +44,13 @@ class BackendUnavailableError(UnknownNameError):
 
 class InfeasibleError(WbcError, RuntimeError):
     """A problem has no solution; raised only where a status cannot be returned instead."""
+
+
+class MissingDependencyError(WbcError, ImportError):
+    """An optional package a feature needs is not installed; the message says how to install
+    it (e.g. ``pip install 'wbc[pink]'``)."""
+
+
+class BackendError(WbcError, RuntimeError):
+    """A QP backend's own library raised (a rejected option, a crash inside the solver); the
+    message names the backend and keeps the library's words."""
