@@ -152,6 +152,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.ticks < 1:
         parser.error("--ticks must be >= 1")
+    missing = [b for b in args.backends or () if b not in available_backends()]
+    if missing:
+        parser.error(f"backend(s) {missing} not available; available: {available_backends()}")
     report = run(args.ticks, backends=args.backends, jit=not args.no_jit,
                  progress=report_progress)
     print(table(report))

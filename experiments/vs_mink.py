@@ -66,7 +66,7 @@ from wbc.experiments.vs_pink import (
     Q0,
 )
 
-SKIP_MESSAGE = "skipped: pip install 'wbc[mink]'"
+INSTALL_HINT = "pip install 'wbc[mink]'"
 HAND = "panda_hand"
 LOCKED_JOINTS = ("panda_finger_joint1", "panda_finger_joint2")
 MODEL_NOTE = ("example-robot-data panda.urdf loaded by MuJoCo: visual/collision elements "
@@ -147,7 +147,7 @@ class MinkLoop:
 
     name = "mink"
     requirement = "mink"
-    skip_message = SKIP_MESSAGE
+    install_hint = INSTALL_HINT
 
     @staticmethod
     def problem_notes() -> dict:

@@ -60,7 +60,7 @@ DAMPING = 1e-12  # pink's default Tikhonov damping; wbc ρ = √DAMPING
 Q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
 COMMAND_TOL = 1e-6  # [rad/s], per tick, at the same state
 POSE_TOL = 1e-4  # [m] and [rad], final hand poses of the two loops
-SKIP_MESSAGE = "skipped: pip install 'wbc[pink]'"
+INSTALL_HINT = "pip install 'wbc[pink]'"
 
 
 def targets(T0: np.ndarray) -> list[np.ndarray]:
@@ -105,12 +105,13 @@ class PinkLoop:
 
     The study code (:func:`run_backend`, :func:`markdown_table`, :func:`main`) takes the rival
     library's loop class as a parameter: ``name`` keys its results, ``requirement`` is the module
-    whose absence skips the study, :meth:`target` converts a ``(4, 4)`` pose into the rival's
-    target type (untimed), and :meth:`problem_notes` adds to the JSON's ``problem``."""
+    whose absence stops the study with ``install_hint``, :meth:`target` converts a ``(4, 4)``
+    pose into the rival's target type (untimed), and :meth:`problem_notes` adds to the JSON's
+    ``problem``."""
 
     name = "pink"
     requirement = "pink"
-    skip_message = SKIP_MESSAGE
+    install_hint = INSTALL_HINT
 
     def __init__(self, robot, solver: str) -> None:
         import pink
@@ -278,7 +279,7 @@ def main(argv: list[str] | None = None, rival: type | None = None) -> int:
     rival = PinkLoop if rival is None else rival
     other = rival.name
     parser = argparse.ArgumentParser(
-        prog=f"python -m wbc.experiments.vs_{other}",
+        prog=f"wbc {other}",
         description=f"wbc vs {other} on the Panda: median tick per backend, ratio, agreement.")
     parser.add_argument("--ticks", type=int, default=3000, help="ticks per backend")
     parser.add_argument("--backends", nargs="+", default=list(BACKENDS),
@@ -288,16 +289,26 @@ def main(argv: list[str] | None = None, rival: type | None = None) -> int:
     parser.add_argument("--no-jit", dest="jit", action="store_false",
                         help="evaluate wbc's compiled stack on CasADi's VM instead of JIT C")
     args = parser.parse_args(argv)
+    from wbc.solvers import available_backends
+
     backends = [b for item in args.backends for b in item.split(",") if b]
+    if args.ticks < 1:
+        parser.error("--ticks must be >= 1")
+    if not backends:
+        parser.error("--backends needs at least one name")
+    unknown = [b for b in backends if b not in available_backends()]
+    if unknown:
+        parser.error(f"backend(s) {unknown} not available; available: {available_backends()}")
     try:
         importlib.import_module(rival.requirement)
         import qpsolvers
-    except ImportError:
-        print(rival.skip_message)
-        return 0
+    except ImportError as err:
+        from wbc.errors import MissingDependencyError
+
+        raise MissingDependencyError(f"wbc {other} needs {rival.requirement!r}, which is not "
+                                     f"installed ({err}): {rival.install_hint}") from None
     from wbc.experiments.machine import describe_machine
     from wbc.experiments.progress import report_progress
-    from wbc.solvers import available_backends
 
     ours, theirs = set(available_backends()), set(qpsolvers.available_solvers)
     skipped = [b for b in backends if b not in ours or b not in theirs]
@@ -328,7 +339,7 @@ def main(argv: list[str] | None = None, rival: type | None = None) -> int:
     for backend, message in errors.items():
         print(f"failed: {backend}: {message}")
     print(f"wrote {path}")
-    return 0
+    return 0 if results else 1  # nothing compared: the job did not run
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ import sys
 import numpy as np
 import pytest
 
+from wbc.errors import MissingDependencyError
 from wbc.experiments import vs_mink
 
 KEYS = {"wbc_median_s", "mink_median_s", "ratio", "command_diff_max", "wbc_error_vs_exact_max",
@@ -50,8 +51,8 @@ def test_vs_mink_writes_its_json(tmp_path, capsys):
     assert "| daqp |" in out and "| quadprog |" in out and "wbc / mink" in out
 
 
-def test_vs_mink_skips_cleanly_without_mink(tmp_path, capsys, monkeypatch):
+def test_vs_mink_without_mink_is_an_error_with_the_install_hint(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "mink", None)  # import mink -> ImportError
-    assert vs_mink.main(["--ticks", "5", "--out", str(tmp_path)]) == 0
-    assert "skipped: pip install 'wbc[mink]'" in capsys.readouterr().out
+    with pytest.raises(MissingDependencyError, match=r"pip install 'wbc\[mink\]'"):
+        vs_mink.main(["--ticks", "5", "--out", str(tmp_path)])
     assert not (tmp_path / "vs_mink.json").exists()

@@ -7,6 +7,7 @@ import sys
 
 import pytest
 
+from wbc.errors import MissingDependencyError
 from wbc.experiments import vs_pink
 
 KEYS = {"wbc_median_s", "pink_median_s", "ratio", "command_diff_max", "agree",
@@ -30,8 +31,8 @@ def test_vs_pink_writes_its_json(tmp_path, capsys):
     assert "| daqp |" in out and "| quadprog |" in out and "wbc / pink" in out
 
 
-def test_vs_pink_skips_cleanly_without_pink(tmp_path, capsys, monkeypatch):
+def test_vs_pink_without_pink_is_an_error_with_the_install_hint(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pink", None)  # import pink -> ImportError
-    assert vs_pink.main(["--ticks", "5", "--out", str(tmp_path)]) == 0
-    assert "skipped: pip install 'wbc[pink]'" in capsys.readouterr().out
+    with pytest.raises(MissingDependencyError, match=r"pip install 'wbc\[pink\]'"):
+        vs_pink.main(["--ticks", "5", "--out", str(tmp_path)])
     assert not (tmp_path / "vs_pink.json").exists()
