@@ -1,4 +1,4 @@
-"""Mobile manipulator models on pinocchio.
+"""Robot models on pinocchio: the catalogue's mobile manipulators and fixed-base arms.
 
 Quick start::
 
@@ -8,23 +8,39 @@ Quick start::
     q = robot.neutral()       # [x, y, θ, arm joints]
     robot.frame_pose(q, "ee")  # (4, 4) in the world
     robot.frame_jacobian(q, "ee")  # (6, nv), rows [linear; angular], LOCAL_WORLD_ALIGNED
+    robot.quantities.offered()     # ['pose[<frame>]', 'J[<frame>]', ..., 'com', ...]
 
-See :mod:`wbc.robots.manipulator` for the coordinates, the Jacobian conventions and the
-one-update-per-tick pattern, :mod:`wbc.robots.catalogue` for the robots and their mounts, and
-the base modules (:mod:`~wbc.robots.steerable`, :mod:`~wbc.robots.differential`,
-:mod:`~wbc.robots.omni`, :mod:`~wbc.robots.mecanum`) for the wheel kinematics.
+Layout, one concern a module:
+
+* :mod:`~wbc.robots.protocol` — :class:`Robot`, what the controller, tasks and simulator use;
+* :mod:`~wbc.robots.pinocchio_robot` — :class:`PinocchioRobot`, the one implementation of the
+  protocol (coordinates, Jacobian conventions, the one-update-per-tick pattern, clones sharing
+  the immutable model); :mod:`~wbc.robots.manipulator` (:class:`MobileManipulator`) and
+  :mod:`~wbc.robots.fixed_base` (:class:`FixedBaseRobot`, :func:`load_panda`) specialise it;
+* :mod:`~wbc.robots.model_assembly` — the whole-body pinocchio model from base + arm + mount;
+* :mod:`~wbc.robots.symbolic` — the hand-written CasADi kinematics (why, and which joints);
+* :mod:`~wbc.robots.model_quantities` — the quantity registry every robot offers;
+* :mod:`~wbc.robots.manipulability` — ``det(J Jᵀ)`` and its analytic gradient;
+* :mod:`~wbc.robots.catalogue` — the named robots and their mounts, :func:`from_urdf`;
+* the bases (:mod:`~wbc.robots.planar_base`, :mod:`~wbc.robots.steerable`,
+  :mod:`~wbc.robots.differential`, :mod:`~wbc.robots.omni`, :mod:`~wbc.robots.mecanum`) for the
+  wheel kinematics, and the arms (:mod:`~wbc.robots.arms`, :mod:`~wbc.robots.kuka_lwr4`,
+  :mod:`~wbc.robots.kinova_gen3`).
 """
 
 from .arms import Arm, arm_from_model, arm_from_urdf, panda, ur5, ur10
 from .catalogue import base_names, from_urdf, load, make_base, names
 from .differential import DifferentialDriveBase, tiago_base
+from .fixed_base import FixedBaseRobot, load_panda
 from .kinova_gen3 import kinova_gen3
 from .kuka_lwr4 import kuka_lwr4
 from .limits import Limits
 from .manipulator import MobileManipulator
 from .mecanum import MecanumBase, mecanum_base
 from .omni import OmniBase, omni4_octagon
+from .pinocchio_robot import PinocchioRobot
 from .planar_base import PlanarBase
+from .protocol import Robot, SymbolicRobot
 from .reduced import ReducedPanda
 from .resources import robots_dir, urdf_path
 from .steerable import SteerableBase, SteerableRates, mpo700
@@ -33,14 +49,18 @@ from .views import column_major_view
 __all__ = [
     "Arm",
     "DifferentialDriveBase",
+    "FixedBaseRobot",
     "Limits",
     "MecanumBase",
     "MobileManipulator",
     "OmniBase",
+    "PinocchioRobot",
     "PlanarBase",
     "ReducedPanda",
+    "Robot",
     "SteerableBase",
     "SteerableRates",
+    "SymbolicRobot",
     "arm_from_model",
     "arm_from_urdf",
     "base_names",
@@ -49,6 +69,7 @@ __all__ = [
     "kinova_gen3",
     "kuka_lwr4",
     "load",
+    "load_panda",
     "make_base",
     "mecanum_base",
     "mpo700",

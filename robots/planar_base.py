@@ -35,8 +35,6 @@ HOLONOMIC_MAP.setflags(write=False)
 #: body map ``B`` of the differential drive: ``(v, ω) -> (v, 0, ω)``.
 UNICYCLE_MAP = np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
 UNICYCLE_MAP.setflags(write=False)
-_IDENTITY3 = HOLONOMIC_MAP
-_UNICYCLE = UNICYCLE_MAP
 
 
 def as_vector(value, size: int, name: str) -> np.ndarray:
@@ -100,19 +98,15 @@ class PlanarBase(ABC):
         return len(self.velocity_names)
 
     # ------------------------------------------------------------------ planar maps
-    def body_twist(self, base_velocity) -> np.ndarray:
-        """Body twist ``(v_x [m/s], v_y [m/s], ω [rad/s])`` in the base frame of ``v_b``."""
-        return self.body_map @ as_vector(base_velocity, self.nv, "base_velocity")
-
     def pose_rate_matrix(self, theta: float, out: np.ndarray | None = None) -> np.ndarray:
         """``H(θ)`` (3 × nv): base velocity coordinates -> world pose rates ``(ẋ, ẏ, θ̇)``."""
         c, s = math.cos(theta), math.sin(theta)
         if out is None:
             out = np.empty((3, self.nv))
         # filled from Python floats: one assignment, no temporary arrays (hot path)
-        if self.nv == 3 and self.body_map is _IDENTITY3:
+        if self.nv == 3 and self.body_map is HOLONOMIC_MAP:
             out[:] = ((c, -s, 0.0), (s, c, 0.0), (0.0, 0.0, 1.0))
-        elif self.nv == 2 and self.body_map is _UNICYCLE:
+        elif self.nv == 2 and self.body_map is UNICYCLE_MAP:
             out[:] = ((c, 0.0), (s, 0.0), (0.0, 1.0))
         else:
             np.matmul(

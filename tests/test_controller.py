@@ -259,6 +259,8 @@ def test_compiled_kinematics_give_the_same_commands(robot):
     assert wbc.Controller(robot, panda_stack(robot), backend=BACKEND).kinematics == "compiled"
 
     class Unsupported:  # the Panda, but its symbolic_frame refuses the model's joints
+        quantities = None  # the getter-only protocol: the registry comes from the getters
+
         def __getattr__(self, name):
             return getattr(robot, name)
 

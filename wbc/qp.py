@@ -38,7 +38,6 @@ class Status(enum.Enum):
     INFEASIBLE = "infeasible"
     MAX_ITER = "max_iter"
     NUMERICAL = "numerical_error"
-    NOT_SOLVED = "not_solved"  # nothing attempted yet, or an earlier level failed
 
     @property
     def ok(self) -> bool:

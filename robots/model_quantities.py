@@ -1,0 +1,106 @@
+"""The model quantities a wbc robot offers the controller (its :class:`~wbc.QuantityRegistry`).
+
+==============================  ==========  =====  ===============================================
+name                            shape       v?     value (at the robot's last ``update``)
+==============================  ==========  =====  ===============================================
+``pose[<frame>]``               (4, 4)             world pose, translation [m]
+``J[<frame>]``                  (6, nv)            Jacobian, rows [linear; angular], world axes
+``Jdot_v[<frame>]``             (6, 1)      yes    drift ``J̇ v`` [m/s², rad/s²], world axes
+``J_base[<frame>]``             (6, nv)            Jacobian in the base frame's axes
+``com``                         (3, 1)             centre of mass [m], world
+``J_com``                       (3, nv)            centre-of-mass Jacobian, world axes
+``manipulability[<frame>]``     (1, 1)             ``det(J Jᵀ)`` of the arm's columns
+``manipulability_gradient[f]``  (n_arm, 1)         its gradient w.r.t. the arm joints
+==============================  ==========  =====  ===============================================
+
+``pose``, ``J``, ``Jdot_v`` and ``J_base`` have symbolic forms (CasADi functions of ``q``, or
+``(q, v)`` for ``Jdot_v``, with one output each, built from
+:meth:`~wbc.robots.pinocchio_robot.PinocchioRobot.symbolic_frame` /
+:meth:`~wbc.robots.pinocchio_robot.PinocchioRobot.symbolic_drift`), so
+``kinematics="compiled"`` inlines them; the others are filled numerically. The compiled forms
+are cached on the robot's shared function cache, so a clone's registry reuses them.
+
+Fillers write element-wise into ``out`` (the shape above; possibly a column-major view into a
+compiled stack's parameter vector): vector quantities are written through the ``out[:, 0]``
+view, never by rebinding.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from wbc.quantities import QuantityRegistry
+
+__all__ = ["register_quantities"]
+
+
+def _one_output(robot, kind: str, frame, output: int) -> ca.Function:
+    """Output ``output`` of ``robot.symbolic_frame(frame)`` as a one-output function of ``q``
+    (cached on the robot, shared by clones)."""
+    fid = robot.frame_id(frame)
+
+    def build() -> ca.Function:
+        kinematics = robot.symbolic_frame(fid)
+        q = ca.SX.sym("q", robot.nq)
+        value = kinematics(q)[output]
+        if kind == "J_base" and robot.base is not None:
+            # blockdiag(Rᵀ, Rᵀ) J_world with R = Rz(θ): the world twist in base axes
+            c, s = ca.cos(q[2]), ca.sin(q[2])
+            rt = ca.SX(3, 3)
+            rt[0, 0], rt[0, 1], rt[1, 0], rt[1, 1], rt[2, 2] = c, s, -s, c, 1
+            value = ca.vertcat(rt @ value[:3, :], rt @ value[3:, :])
+        name = kind.replace("_", "") + kinematics.name().removeprefix("kinematics")
+        return ca.Function(name, [q], [value], ["q"], [kind])
+
+    return robot._cached(kind, fid, build)
+
+
+def register_quantities(robot) -> QuantityRegistry:
+    """A registry of the quantities of ``robot`` (a
+    :class:`~wbc.robots.pinocchio_robot.PinocchioRobot`), see the module docstring."""
+    registry = QuantityRegistry()
+    nv, n_arm = robot.nv, robot.n_arm
+
+    def frames() -> list[str]:
+        return robot.frame_names
+
+    def fill_manipulability(frame: str, out) -> None:
+        out[0, 0] = robot.manipulability(None, frame)
+
+    registry.register(
+        "pose", argument="frame", arguments=frames, shape=lambda f: (4, 4),
+        fill=lambda f, out: robot.frame_pose(None, f, out),
+        symbolic=lambda f: _one_output(robot, "pose", f, 0),
+        doc="world pose (4, 4) of the frame, translation [m]")
+    registry.register(
+        "J", argument="frame", arguments=frames, shape=lambda f: (6, nv),
+        fill=lambda f, out: robot.frame_jacobian(None, f, "world", out),
+        symbolic=lambda f: _one_output(robot, "J", f, 1),
+        doc="frame Jacobian (6, nv): origin velocity [m/s] and angular velocity [rad/s], "
+            "world axes, per unit v")
+    registry.register(
+        "Jdot_v", argument="frame", arguments=frames, shape=lambda f: (6, 1), needs_v=True,
+        fill=lambda f, out: robot.frame_drift(None, None, f, "world", out[:, 0]),
+        symbolic=lambda f: robot.symbolic_drift(f),
+        doc="drift J̇v (6, 1) [m/s², rad/s²] at v̇ = 0, world axes")
+    registry.register(
+        "J_base", argument="frame", arguments=frames, shape=lambda f: (6, nv),
+        fill=lambda f, out: robot.frame_jacobian(None, f, "base", out),
+        symbolic=lambda f: _one_output(robot, "J_base", f, 1),
+        doc="frame Jacobian (6, nv) in the base frame's axes (world axes for a fixed base)")
+    registry.register(
+        "com", shape=lambda _: (3, 1), fill=lambda _, out: robot.com(None, out[:, 0]),
+        doc="centre of mass (3, 1) [m], world")
+    registry.register(
+        "J_com", shape=lambda _: (3, nv), fill=lambda _, out: robot.com_jacobian(None, out),
+        doc="centre-of-mass Jacobian (3, nv) [m/s per unit v], world axes")
+    registry.register(
+        "manipulability", argument="frame", arguments=frames, shape=lambda f: (1, 1),
+        fill=fill_manipulability,
+        doc="Yoshikawa's det(J Jᵀ) (1, 1) of the arm's Jacobian columns")
+    registry.register(
+        "manipulability_gradient", argument="frame", arguments=frames,
+        shape=lambda f: (n_arm, 1),
+        fill=lambda f, out: robot.manipulability_gradient(None, f, out[:, 0]),
+        doc="gradient (n_arm, 1) of manipulability[frame] w.r.t. the arm joints [per rad]")
+    return registry

@@ -1,0 +1,161 @@
+"""Hand-written CasADi kinematics of pinocchio models: frame poses, Jacobians and drifts as
+CasADi functions, for ``Controller(..., kinematics="compiled")``.
+
+Why hand-written
+----------------
+Pinocchio has a CasADi back end (``pinocchio.casadi``), but the ``pin`` wheels on the Python
+package index are built without it; wbc must install from the index alone. The kinematics of a
+chain of 1-DoF joints are short, so this module writes them directly in CasADi from the model's
+joint placements and frame placements (no pinocchio call inside the functions).
+
+Supported joints
+----------------
+1-DoF **revolute** and **prismatic** joints, with an axis along x, y or z of the joint frame
+(``JointModelRX`` … ``JointModelPZ``) or any unit axis (``JointModelRevoluteUnaligned``,
+``JointModelPrismaticUnaligned``). Every other joint type (spherical, free-flyer, planar,
+helical, unbounded revolute, mimic, …) is refused by :func:`check_joints`, which the robots
+call when they are built — an unsupported joint is a :class:`~wbc.WbcError` at load time, never
+a wrong Jacobian later. (The arms of :mod:`wbc.robots.arms` turn URDF ``continuous`` joints into
+plain revolute joints first.)
+
+Conventions
+-----------
+Poses are world poses (4 × 4; translation [m]); Jacobians ``(6, nv)`` have rows ``[linear;
+angular]``: the frame origin's velocity [m/s] and the angular velocity [rad/s] in world axes,
+per unit joint rate (pinocchio's ``LOCAL_WORLD_ALIGNED``). Drifts ``J̇ v`` (6 × 1) are one
+forward-mode directional derivative of ``J(q) v`` along ``q̇``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+from wbc.errors import ShapeError, WbcError
+
+__all__ = [
+    "check_joints",
+    "function_name",
+    "pose_rate_matrix",
+    "symbolic_frame_drift",
+    "symbolic_frame_kinematics",
+]
+
+_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+_UNALIGNED = ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned")
+
+
+def _joint_kind(joint) -> tuple[str, np.ndarray] | None:
+    """``("R" | "P", unit axis in the joint frame)`` of a supported joint, else ``None``."""
+    name = joint.shortname()
+    if name in _UNALIGNED:
+        axis = np.asarray(joint.extract().axis, dtype=float)
+        return name[10], axis / np.linalg.norm(axis)
+    if len(name) == 12 and name[10] in "RP" and name[11] in _AXES:  # JointModelRZ, ...PX
+        return name[10], np.array(_AXES[name[11]])
+    return None
+
+
+def check_joints(model: pin.Model, what: str = "robot") -> None:
+    """Raise :class:`~wbc.WbcError` naming every joint of ``model`` the symbolic kinematics do
+    not support (see the module docstring); ``what`` names the robot in the message."""
+    bad = [f"{model.names[j]} ({model.joints[j].shortname()})"
+           for j in range(1, model.njoints) if _joint_kind(model.joints[j]) is None]
+    if bad:
+        raise WbcError(f"{what}: unsupported joints {bad}; wbc robots support 1-DoF revolute "
+                       f"and prismatic joints (aligned or unaligned axes) only")
+
+
+def function_name(prefix: str, frame_name: str) -> str:
+    """A CasADi function name ``<prefix>_<frame>``: CasADi names must be identifiers without
+    ``"__"``, URDF frame names need not be (e.g. ``"base_link-base_fixed_joint"``)."""
+    return "_".join([prefix, *re.findall(r"[A-Za-z0-9]+", frame_name)])
+
+
+def _rotation(axis: np.ndarray, angle) -> ca.SX:
+    """Rodrigues' formula ``I + sin θ [a]× + (1 − cos θ) [a]×²`` (exact for unit axes)."""
+    K = ca.DM([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return ca.SX.eye(3) + ca.sin(angle) * K + (1 - ca.cos(angle)) * (K @ K)
+
+
+def symbolic_frame_kinematics(model: pin.Model, frame_id: int) -> ca.Function:
+    """CasADi function ``q -> (pose (4, 4), J (6, nv))`` of a frame of a model made of
+    supported joints: world pose and Jacobian in world-aligned axes at the frame origin
+    (pinocchio's ``LOCAL_WORLD_ALIGNED``), built from the model's joint placements.
+
+    Raises:
+        WbcError: a joint on the frame's chain is not supported (robots check at load time).
+    """
+    frame = model.frames[frame_id]
+    q = ca.SX.sym("q", model.nq)
+    chain, j = [], frame.parentJoint
+    while j > 0:
+        chain.append(j)
+        j = model.parents[j]
+    R, p = ca.SX.eye(3), ca.SX.zeros(3)
+    columns = []  # (idx_v, kind, world axis, joint origin)
+    for j in reversed(chain):
+        joint, M = model.joints[j], model.jointPlacements[j]
+        kind_axis = _joint_kind(joint)
+        if kind_axis is None:
+            check_joints(model, model.name or "model")  # raises, naming the joint
+        kind, axis = kind_axis
+        p = p + R @ ca.DM(M.translation)
+        R = R @ ca.DM(M.rotation)
+        world_axis = R @ ca.DM(axis)
+        columns.append((joint.idx_v, kind, world_axis, p))
+        if kind == "R":
+            R = R @ _rotation(axis, q[joint.idx_q])
+        else:
+            p = p + world_axis * q[joint.idx_q]
+    p_f = p + R @ ca.DM(frame.placement.translation)
+    R_f = R @ ca.DM(frame.placement.rotation)
+    pose = ca.vertcat(ca.horzcat(R_f, p_f), ca.DM([[0, 0, 0, 1]]))
+    J = ca.SX.zeros(6, model.nv)
+    for idx_v, kind, axis, origin in columns:
+        if kind == "R":
+            J[:3, idx_v] = ca.cross(axis, p_f - origin)
+            J[3:, idx_v] = axis
+        else:
+            J[:3, idx_v] = axis
+    return ca.Function(function_name("kinematics", frame.name), [q], [pose, J], ["q"],
+                       ["pose", "J"])
+
+
+def symbolic_frame_drift(
+    kinematics: ca.Function,
+    configuration_rate: Callable[[ca.SX, ca.SX], ca.SX] | None = None,
+) -> ca.Function:
+    """CasADi function ``(q, v) -> J̇ v (6, 1)`` from a frame function ``q -> (pose, J)``.
+
+    ``J̇ v = d/dt (J(q) v)`` at constant ``v``, i.e. ``(∂(J v)/∂q) q̇`` (one forward-mode
+    directional derivative) with ``q̇ = configuration_rate(q, v)`` — ``v`` itself when ``None``
+    (``nq == nv``). Rows ``[linear [m/s²]; angular [rad/s²]]`` in the axes of ``J``'s rows.
+    Because the whole of ``J(q)`` is differentiated, a ``J`` that already carries a
+    configuration-dependent velocity map (``J = J_pin(q) S(q)`` of a mobile base) yields
+    ``J̇_pin q̇ + J_pin Ṡ v``, the map's rate included.
+    """
+    nq, nv = kinematics.size1_in(0), kinematics.size2_out(1)
+    q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
+    _, J = kinematics(q)  # SX call: the expressions are inlined, so AD sees through them
+    qdot = v if configuration_rate is None else configuration_rate(q, v)
+    if qdot.shape != (nq, 1):
+        raise ShapeError(f"configuration rate must have shape ({nq}, 1), got {qdot.shape}")
+    drift = ca.jtimes(J @ v, q, qdot)
+    # same identifier scheme as the frame function ("kinematics_<frame>" -> "drift_<frame>")
+    name = "drift" + kinematics.name().removeprefix("kinematics")
+    return ca.Function(name, [q, v], [drift], ["q", "v"], ["drift"])
+
+
+def pose_rate_matrix(theta: ca.SX, body_map: np.ndarray) -> ca.SX:
+    """``H(θ) = Rz(θ) B`` (3 × nv_base) as a CasADi expression: a planar base's velocity
+    coordinates -> world pose rates ``(ẋ, ẏ, θ̇)`` (cf.
+    :meth:`wbc.robots.planar_base.PlanarBase.pose_rate_matrix`)."""
+    c, s = ca.cos(theta), ca.sin(theta)
+    rz = ca.SX(3, 3)  # structural zeros keep the products with it lean
+    rz[0, 0], rz[0, 1], rz[1, 0], rz[1, 1], rz[2, 2] = c, -s, s, c, 1
+    return rz @ ca.sparsify(ca.DM(body_map))

@@ -1,0 +1,364 @@
+"""The robot protocol's conformance suite: every catalogue robot and the fixed-base Panda (with
+and without its prismatic fingers) against finite differences along ``integrate``, their own
+getters with and without ``out=``, their symbolic forms and their quantity registry."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import wbc
+import wbc.robots
+from wbc.quantities import QuantityRegistry
+from wbc.robots import FixedBaseRobot, Robot, SymbolicRobot, load_panda
+from wbc.robots.views import column_major_view
+
+SEED = 20240917
+H = 1e-5  # central-difference step [s] along integrate
+ROBOTS = [*wbc.robots.names(), "panda", "panda_fingers"]
+REQUIRED_QUANTITIES = ("pose[ee]", "J[ee]", "Jdot_v[ee]", "J_base[ee]", "com", "J_com",
+                       "manipulability[ee]", "manipulability_gradient[ee]")
+
+
+def _load(name: str):
+    if name == "panda":
+        return load_panda()
+    if name == "panda_fingers":  # prismatic finger joints too
+        return load_panda(fingers=True)
+    return wbc.robots.load(name)
+
+
+@pytest.fixture(scope="module", params=ROBOTS)
+def robot(request):
+    return _load(request.param)
+
+
+def mobile(robot) -> bool:
+    return getattr(robot, "base", None) is not None
+
+
+def states(robot, rng: np.random.Generator, count: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Random ``(q, v)``: for mobile bases headings beyond ±π [rad] (1 to 4 whole turns) and
+    base velocities up to 6 m/s and 5 rad/s (beyond the robots' limits: the kinematics do not
+    care); joint rates up to 3 rad/s; the joints uniform within their position limits
+    (``[−π, π]`` where unbounded)."""
+    lower = np.where(np.isfinite(robot.limits.q_lower), robot.limits.q_lower, -math.pi)
+    upper = np.where(np.isfinite(robot.limits.q_upper), robot.limits.q_upper, math.pi)
+    out = []
+    for _ in range(count):
+        q = rng.uniform(lower, upper)
+        v = rng.uniform(-3.0, 3.0, robot.nv)
+        if mobile(robot):
+            q[:2] = rng.uniform(-5.0, 5.0, 2)
+            turns = rng.integers(1, 5) * rng.choice([-1, 1])  # whole turns, never zero
+            q[2] = rng.uniform(-math.pi, math.pi) + 2.0 * math.pi * turns
+            nb = robot.nv_base
+            v[: nb - 1] = rng.uniform(-6.0, 6.0, nb - 1)  # v_x (v_y) [m/s]
+            v[nb - 1] = rng.uniform(-5.0, 5.0)  # ω [rad/s]
+        out.append((q, v))
+    if mobile(robot):
+        assert any(abs(q[2]) > math.pi for q, _ in out)
+    return out
+
+
+def scaled_error(value: np.ndarray, reference: np.ndarray) -> float:
+    """``max |value − reference|`` relative to ``max(1, max |reference|)``: drifts grow as
+    ``|v|²`` (centripetal terms of large base velocities)."""
+    value, reference = np.asarray(value), np.asarray(reference)
+    return float(np.abs(value - reference).max()) / max(1.0, float(np.abs(reference).max()))
+
+
+def axes(robot, q: np.ndarray, frame: str, reference: str) -> np.ndarray:
+    """Rotation (3 × 3) whose transpose takes world axes to the ``reference`` axes, derived from
+    the documented conventions: the base frame is ``Rz(θ)`` (the world for a fixed base)."""
+    if reference == "world" or (reference == "base" and not mobile(robot)):
+        return np.eye(3)
+    if reference == "base":
+        return pin.utils.rpyToMatrix(0.0, 0.0, q[2])
+    return robot.frame_pose(q, frame)[:3, :3].copy()
+
+
+def in_axes(rotation: np.ndarray, twist: np.ndarray) -> np.ndarray:
+    return np.concatenate([rotation.T @ twist[:3], rotation.T @ twist[3:]])
+
+
+def frames_to_check(robot) -> list[str]:
+    """``"ee"``, a frame in the middle of the chain and, for a mobile base, ``"base"``."""
+    model = robot.model
+    middle = model.frames[robot.frame_id("ee")].parentJoint // 2 + 1
+    body = next(f.name for f in model.frames if f.parentJoint == middle)
+    return ["ee", body, *(["base"] if mobile(robot) else [])]
+
+
+# ------------------------------------------------------------------------ protocol and sizes
+def test_satisfies_the_protocol(robot):
+    assert isinstance(robot, Robot) and isinstance(robot, SymbolicRobot)
+    assert isinstance(robot.quantities, QuantityRegistry)
+    assert "ee" in robot.frame_names and robot.has_frame("ee") and not robot.has_frame("nope")
+    assert not isinstance(object(), Robot)
+
+
+def test_limits_have_the_sizes_of_q_and_v(robot):
+    limits = robot.limits
+    assert (limits.nq, limits.nv) == (robot.nq, robot.nv)
+    assert limits.q_lower.shape == limits.q_upper.shape == (robot.nq,)
+    for array in (limits.v_lower, limits.v_upper, limits.a_lower, limits.a_upper):
+        assert array.shape == (robot.nv,)
+
+
+def test_neutral_and_random_configurations_are_within_the_limits(robot):
+    q = robot.neutral()
+    assert q.shape == (robot.nq,)
+    assert np.all(q >= robot.limits.q_lower) and np.all(q <= robot.limits.q_upper)
+    q[0] += 1.0  # a copy: the robot's home is not changed
+    assert not np.array_equal(q, robot.neutral())
+    rng = np.random.default_rng(SEED)
+    samples = np.array([robot.random_configuration(rng) for _ in range(200)])
+    assert samples.shape == (200, robot.nq)
+    assert np.all(samples >= robot.limits.q_lower) and np.all(samples <= robot.limits.q_upper)
+    # bounded coordinates are spread over their range, unbounded ones over [−π, π] (the
+    # documented range; [−2, 2] m for a base position)
+    finite = np.isfinite(robot.limits.q_lower) & np.isfinite(robot.limits.q_upper)
+    span = np.where(finite, robot.limits.q_upper - robot.limits.q_lower, 2.0 * math.pi)
+    if mobile(robot):
+        span[:2] = 4.0
+    assert np.all(np.ptp(samples, axis=0) > 0.8 * span)
+    assert np.all(np.abs(samples[:, ~finite]) <= math.pi)
+
+
+def test_integrate_is_a_flow(robot):
+    """``integrate`` moves along the motion of a constant ``v``: zero time is the identity,
+    durations add, the joints move linearly (the base along an arc)."""
+    for q, v in states(robot, np.random.default_rng(SEED + 1), 3):
+        np.testing.assert_array_equal(robot.integrate(q, v, 0.0), q)
+        np.testing.assert_array_equal(robot.integrate(q, np.zeros(robot.nv), 0.3), q)
+        once = robot.integrate(q, v, 0.5)
+        twice = robot.integrate(robot.integrate(q, v, 0.2), v, 0.3)
+        np.testing.assert_allclose(twice, once, rtol=0, atol=1e-12)
+        nq_base, nv_base = (3, robot.nv_base) if mobile(robot) else (0, 0)
+        np.testing.assert_allclose(once[nq_base:], q[nq_base:] + 0.5 * v[nv_base:], rtol=0,
+                                   atol=1e-15)
+
+
+# ------------------------------------------------------------------------ finite differences
+def test_jacobians_are_the_derivative_of_the_pose_along_integrate(robot):
+    """``J v`` = central difference of the frame pose along ``integrate(q, v, ±h)``: origin
+    velocity and angular velocity (log of the relative rotation), in each reference's axes."""
+    for q, v in states(robot, np.random.default_rng(SEED + 2), 3):
+        for frame in frames_to_check(robot):
+            ahead = robot.frame_pose(robot.integrate(q, v, H), frame).copy()
+            behind = robot.frame_pose(robot.integrate(q, v, -H), frame).copy()
+            twist = np.concatenate([(ahead[:3, 3] - behind[:3, 3]) / (2.0 * H),
+                                    pin.log3(ahead[:3, :3] @ behind[:3, :3].T) / (2.0 * H)])
+            for reference in ("world", "base", "local"):
+                J = robot.frame_jacobian(q, frame, reference)
+                expected = in_axes(axes(robot, q, frame, reference), twist)
+                assert scaled_error(J @ v, expected) < 1e-7, (frame, reference)
+
+
+def test_drift_is_the_derivative_of_the_twist_along_integrate(robot):
+    """``J̇ v`` = ``(J(q(t+h)) v − J(q(t−h)) v) / 2h`` with ``q(t)`` the motion at constant ``v``
+    (``integrate``: exact arcs for mobile bases), for the Jacobian of each reference; the
+    symbolic drift (world axes) too."""
+    for q, v in states(robot, np.random.default_rng(SEED + 3), 4):
+        ahead_q, behind_q = robot.integrate(q, v, H), robot.integrate(q, v, -H)
+        for frame in frames_to_check(robot):
+            for reference in ("world", "base", "local"):
+                ahead = robot.frame_jacobian(ahead_q, frame, reference) @ v
+                behind = robot.frame_jacobian(behind_q, frame, reference) @ v
+                difference = (ahead - behind) / (2.0 * H)
+                drift = robot.frame_drift(q, v, frame, reference)
+                # truncation ~ h² |d³(Jv)/dt³| / 6 and round-off ~ eps |J v| / h: below 1e-7
+                error = scaled_error(difference, drift)
+                assert error < 1e-6, (frame, reference, error)
+                if reference == "world":
+                    symbolic = np.array(robot.symbolic_drift(frame)(q, v)).ravel()
+                    assert scaled_error(difference, symbolic) < 1e-6, frame
+
+
+def test_centre_of_mass_jacobian_along_integrate(robot):
+    for q, v in states(robot, np.random.default_rng(SEED + 4), 2):
+        difference = (robot.com(robot.integrate(q, v, H)) -
+                      robot.com(robot.integrate(q, v, -H))) / (2.0 * H)
+        assert scaled_error(robot.com_jacobian(q) @ v, difference) < 1e-7
+
+
+def test_manipulability_gradient_against_finite_differences(robot):
+    q = states(robot, np.random.default_rng(SEED + 5), 1)[0][0]
+    first = robot.nq - robot.n_arm
+    gradient = robot.manipulability_gradient(q).copy()
+    expected = []
+    for k in range(robot.n_arm):
+        dq = np.zeros(robot.nq)
+        dq[first + k] = 1e-6
+        expected.append((robot.manipulability(q + dq) - robot.manipulability(q - dq)) / 2e-6)
+    assert scaled_error(gradient, expected) < 1e-5
+
+
+# ------------------------------------------------------------------------ getters and out=
+def test_getters_with_and_without_out_are_equal(robot):
+    """After one update, the getters give the same numbers returned, written into a C-ordered
+    array, into a Fortran-ordered array and into a column-major view of a parameter vector, and
+    the same as when called with ``(q, v)``."""
+    q, v = states(robot, np.random.default_rng(SEED + 6), 1)[0]
+    nv = robot.nv
+    for reference in ("world", "base", "local"):
+        expected = {"pose": robot.frame_pose(q, "ee").copy(),
+                    "J": robot.frame_jacobian(q, "ee", reference).copy(),
+                    "drift": robot.frame_drift(q, v, "ee", reference).copy()}
+        robot.update(q, v)
+        getters = {"pose": lambda out: robot.frame_pose(None, "ee", out),
+                   "J": lambda out, r=reference: robot.frame_jacobian(None, "ee", r, out),
+                   "drift": lambda out, r=reference: robot.frame_drift(None, None, "ee", r, out)}
+        shapes = {"pose": (4, 4), "J": (6, nv), "drift": (6,)}
+        buffer = np.full(3 + 16 + 6 * nv + 6, np.nan)
+        offsets = {"pose": 3, "J": 19, "drift": 19 + 6 * nv}
+        for key, getter in getters.items():
+            np.testing.assert_array_equal(getter(None), expected[key], err_msg=key)
+            for order in ("C", "F"):
+                out = np.full(shapes[key], np.nan, order=order)
+                assert getter(out) is out
+                np.testing.assert_array_equal(out, expected[key], err_msg=f"{key} {order}")
+            view = column_major_view(buffer, offsets[key], shapes[key])
+            getter(view)
+            np.testing.assert_array_equal(view, expected[key], err_msg=f"{key} view")
+        assert np.all(np.isnan(buffer[:3]))  # nothing written outside the views
+        np.testing.assert_array_equal(
+            buffer[3:], np.concatenate([expected[k].ravel(order="F") for k in offsets]))
+
+
+def test_getters_read_the_last_update(robot):
+    (q1, v1), (q2, _) = states(robot, np.random.default_rng(SEED + 7), 2)
+    pose1 = robot.frame_pose(q1, "ee").copy()
+    robot.update(q2)
+    assert not np.allclose(robot.frame_pose(None, "ee"), pose1)
+    robot.update(q1, v1)
+    np.testing.assert_array_equal(robot.frame_pose(None, "ee"), pose1)
+    np.testing.assert_array_equal(robot.frame_drift(None, None, "ee"),
+                                  robot.frame_drift(q1, v1, "ee"))
+
+
+# ------------------------------------------------------------------------ symbolic forms
+def test_symbolic_forms_equal_the_numeric_getters(robot):
+    frame_fn, drift_fn = robot.symbolic_frame("ee"), robot.symbolic_drift("ee")
+    assert frame_fn.size_in(0) == (robot.nq, 1)
+    assert frame_fn.size_out(0) == (4, 4) and frame_fn.size_out(1) == (6, robot.nv)
+    assert drift_fn.size_in(0) == (robot.nq, 1) and drift_fn.size_in(1) == (robot.nv, 1)
+    assert drift_fn.size_out(0) == (6, 1)
+    for q, v in states(robot, np.random.default_rng(SEED + 8), 8):
+        pose, J = (np.array(x) for x in frame_fn(q))
+        assert scaled_error(pose, robot.frame_pose(q, "ee")) < 1e-12
+        assert scaled_error(J, robot.frame_jacobian(q, "ee")) < 1e-12
+        drift = np.array(drift_fn(q, v)).ravel()
+        assert scaled_error(drift, robot.frame_drift(q, v, "ee")) < 1e-12
+
+
+def test_symbolic_forms_of_every_frame(robot):
+    q, v = states(robot, np.random.default_rng(SEED + 9), 1)[0]
+    for frame in robot.frame_names:
+        pose, J = (np.array(x) for x in robot.symbolic_frame(frame)(q))
+        assert scaled_error(pose, robot.frame_pose(q, frame)) < 1e-12, frame
+        assert scaled_error(J, robot.frame_jacobian(q, frame)) < 1e-12, frame
+        drift = np.array(robot.symbolic_drift(frame)(q, v)).ravel()
+        assert scaled_error(drift, robot.frame_drift(q, v, frame)) < 1e-12, frame
+
+
+def test_symbolic_forms_are_cached_and_shared_by_clones(robot):
+    frame_fn, drift_fn = robot.symbolic_frame("ee"), robot.symbolic_drift("ee")
+    assert robot.symbolic_frame("ee") is frame_fn and robot.symbolic_drift() is drift_fn
+    assert robot.symbolic_drift(robot.frame_id("ee")) is drift_fn  # by index too
+    other = robot.clone()
+    assert other.symbolic_frame("ee") is frame_fn and other.symbolic_drift("ee") is drift_fn
+    assert other.quantities.get("J[ee]").symbolic() is robot.quantities.get("J[ee]").symbolic()
+
+
+def test_unknown_frame_raises_as_the_getters_do(robot):
+    for bad in ("no_such_frame", len(robot.model.frames) + 5):
+        with pytest.raises(wbc.UnknownNameError):
+            robot.frame_pose(robot.neutral(), bad)
+        with pytest.raises(wbc.UnknownNameError):
+            robot.symbolic_frame(bad)
+        with pytest.raises(wbc.UnknownNameError):
+            robot.symbolic_drift(bad)
+
+
+# ------------------------------------------------------------------------ clones
+def test_clone_is_independent(robot):
+    (q1, v1), (q2, v2) = states(robot, np.random.default_rng(SEED + 10), 2)
+    other = robot.clone()
+    assert other.model is robot.model and other.data is not robot.data
+    assert other.quantities is not robot.quantities
+    robot.update(q1, v1)
+    other.update(q2, v2)
+    np.testing.assert_array_equal(robot.frame_pose(None, "ee"), robot.frame_pose(q1, "ee"))
+    assert not np.allclose(robot.frame_pose(None, "ee"), other.frame_pose(None, "ee"))
+    # each registry fills from its own robot's last update
+    mine, theirs = np.empty((6, robot.nv)), np.empty((6, robot.nv))
+    robot.quantities.get("J[ee]").fill(mine)
+    other.quantities.get("J[ee]").fill(theirs)
+    np.testing.assert_array_equal(mine, robot.frame_jacobian(q1, "ee"))
+    np.testing.assert_array_equal(theirs, other.frame_jacobian(q2, "ee"))
+
+
+# ------------------------------------------------------------------------ quantities
+def test_registry_offers_the_required_quantities_with_their_shapes(robot):
+    nv = robot.nv
+    shapes = {"pose[ee]": (4, 4), "J[ee]": (6, nv), "Jdot_v[ee]": (6, 1), "J_base[ee]": (6, nv),
+              "com": (3, 1), "J_com": (3, nv), "manipulability[ee]": (1, 1),
+              "manipulability_gradient[ee]": (robot.n_arm, 1)}
+    for name, shape in shapes.items():
+        quantity = robot.quantities.get(name)
+        assert quantity.shape == shape, name
+        assert quantity.needs_v == (name == "Jdot_v[ee]"), name
+    with pytest.raises(wbc.UnknownNameError, match="pose"):
+        robot.quantities.get("pose[no_such_frame]")
+    with pytest.raises(wbc.UnknownNameError, match="offers"):
+        robot.quantities.get("wheel_torques")
+
+
+def test_every_quantity_fills_its_getter_and_equals_its_symbolic_form(robot):
+    """Each quantity, filled into a column-major view of a parameter buffer after one update,
+    equals the robot's getter and — where it has one — its symbolic form (to 1e-12)."""
+    q, v = states(robot, np.random.default_rng(SEED + 11), 1)[0]
+    getters = {
+        "pose[ee]": lambda: robot.frame_pose(q, "ee"),
+        "J[ee]": lambda: robot.frame_jacobian(q, "ee"),
+        "Jdot_v[ee]": lambda: robot.frame_drift(q, v, "ee")[:, None],
+        "J_base[ee]": lambda: robot.frame_jacobian(q, "ee", "base"),
+        "com": lambda: robot.com(q)[:, None],
+        "J_com": lambda: robot.com_jacobian(q),
+        "manipulability[ee]": lambda: np.array([[robot.manipulability(q)]]),
+        "manipulability_gradient[ee]": lambda: robot.manipulability_gradient(q)[:, None],
+    }
+    symbolic = set()
+    for name in REQUIRED_QUANTITIES:
+        quantity = robot.quantities.get(name)
+        expected = getters[name]().copy()
+        size = int(np.prod(quantity.shape))
+        buffer = np.full(size + 2, np.nan)
+        view = column_major_view(buffer, 1, quantity.shape)
+        robot.update(q, v)
+        quantity.fill(view)
+        np.testing.assert_array_equal(view, expected, err_msg=name)
+        assert np.isnan(buffer[0]) and np.isnan(buffer[-1]), name
+        if quantity.symbolic is not None:
+            function = quantity.symbolic()
+            assert function.n_out() == 1, name
+            value = np.array(function(q, v) if quantity.needs_v else function(q))
+            assert scaled_error(value, expected) < 1e-12, name
+            symbolic.add(name)
+    assert symbolic >= {"pose[ee]", "J[ee]", "Jdot_v[ee]", "J_base[ee]"}
+
+
+# ------------------------------------------------------------------------ unsupported joints
+@pytest.mark.parametrize("joint", [pin.JointModelSphericalZYX(), pin.JointModelTranslation()])
+def test_an_unsupported_joint_is_an_error_at_load_time(joint):
+    model = pin.Model()
+    parent = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "yaw")
+    model.addJoint(parent, joint, pin.SE3.Identity(), "odd")
+    assert model.nq == model.nv  # passes the size check: the joint type is what is refused
+    with pytest.raises(wbc.WbcError, match=r"odd \(JointModel"):
+        FixedBaseRobot(model, name="odd_arm")
