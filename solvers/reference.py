@@ -674,3 +674,6 @@ def sns_acceleration(
     if return_info:
         return q, s, SNSInfo(status, tuple(sat), it)
     return q, s
+from .reference_xing import AMPInfo, amp, auxiliary_projector, base_transition, manipulability_acceleration, manipulability_gradient, manipulability_hessian, scaling_factor, traditional  # noqa: E402, E501, I001
+
+__all__ += ["AMPInfo", "amp", "auxiliary_projector", "base_transition", "manipulability_acceleration", "manipulability_gradient", "manipulability_hessian", "scaling_factor", "traditional"]  # noqa: E501

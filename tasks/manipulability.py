@@ -1,0 +1,128 @@
+"""Xing et al.'s singularity-avoidance objective: ``H = det(J_m J_mᵀ)`` and its acceleration.
+
+``J_m`` is the arm's part of a frame's Jacobian: the arm columns (the last ``n_arm``) of the
+position rows of ``J[<frame>]`` (world axes) — the rows that see the singularity Xing et al.
+fight, the fully stretched arm at the border of its workspace. (Their appendix leaves the rows
+open; with the 6 rows of the Gen3's pose Jacobian, mixing metres and radians, ``σ_min`` is
+0.16 already at their start configuration, below their thresholds 0.15 / 0.19, whereas their
+base starts later in both experiments; with the position rows it is 0.245.) ``H`` does not
+depend on the base pose: rotating the rows leaves ``det(J_m J_mᵀ)`` unchanged.
+
+Eq. (12) asks for the joint velocity ``q̇_sa = γ1 ∇H`` and eq. (13) turns it into the
+acceleration ``q̈_sa = γ1 ∇²H q̇_m + γ2 (γ1 ∇H − q̇_m)`` (its derivative along the motion, plus
+a pull of ``q̇_m`` towards it), zero on the base. Everything here is CasADi, derived from the
+robot's symbolic Jacobian (``robot.quantities``' ``"J[<frame>]"``): :class:`ManipulabilityTask`
+puts ``q̈_sa`` in a compiled stack (gradient by reverse mode, ``∇²H q̇`` by one forward sweep,
+from the quantities ``"q"`` and ``"v"``), and :func:`arm_jacobian_derivatives` gives ``J_m``,
+``∂J_m/∂q`` and ``∂²J_m/∂q²`` for the appendix's closed forms
+(:func:`wbc.solvers.reference.manipulability_gradient` / ``manipulability_hessian``).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from wbc.errors import InvalidValueError, WbcError
+from wbc.quantities import registry_of
+from wbc.terms import Cost, Task
+
+from .frame import velocity_block
+from .posture import arm_size
+
+__all__ = ["ManipulabilityTask", "arm_jacobian", "arm_jacobian_derivatives",
+           "manipulability_expressions", "smallest_singular_value"]
+
+
+def arm_jacobian(robot, frame: str = "ee", joints: int | None = None):
+    """``(q, J_m)``: a configuration symbol (nq,) and ``J_m(q)`` (3 × n_arm) as SX, from the
+    robot's symbolic ``"J[<frame>]"``."""
+    quantity = registry_of(robot).get(f"J[{frame}]")
+    if quantity.symbolic is None:
+        raise WbcError(f"the robot has no symbolic form of 'J[{frame}]'")
+    n_arm = arm_size(robot, joints)
+    q = ca.SX.sym("q", int(robot.nq))
+    return q, quantity.symbolic()(q)[:3, int(robot.nv) - n_arm:]
+
+
+def manipulability_expressions(J_m, q_arm, qd_arm):
+    """``(H, ∇H, ∇²H q̇_m)`` as SX for ``J_m`` an expression of ``q_arm``."""
+    H = ca.det(J_m @ J_m.T)
+    gradient = ca.gradient(H, q_arm)
+    return H, gradient, ca.jtimes(gradient, q_arm, qd_arm)
+
+
+def smallest_singular_value(J_m):
+    """``σ_min`` of a 3-row matrix as SX: the square root of the smallest eigenvalue of the
+    symmetric ``Ψ = J_m J_mᵀ`` (3 × 3) by the trigonometric closed form (O. K. Smith,
+    "Eigenvalues of a symmetric 3 × 3 matrix", CACM 1961), so that Xing's σ switch can sit
+    inside a compiled stack (CasADi has no symbolic SVD)."""
+    psi = J_m @ J_m.T
+    mean = ca.trace(psi) / 3
+    off = psi[0, 1] ** 2 + psi[0, 2] ** 2 + psi[1, 2] ** 2
+    spread = ca.sqrt(((psi[0, 0] - mean) ** 2 + (psi[1, 1] - mean) ** 2
+                      + (psi[2, 2] - mean) ** 2 + 2 * off) / 6)
+    safe = ca.if_else(spread > 1e-12 * (1 + mean), spread, 1.0)  # Ψ = mean·I: no spread
+    half_det = ca.det((psi - mean * ca.SX.eye(3)) / safe) / 2
+    angle = ca.acos(ca.fmin(ca.fmax(half_det, -1.0), 1.0)) / 3
+    smallest = mean + 2 * spread * ca.cos(angle + 2 * ca.pi / 3)
+    return ca.sqrt(ca.fmax(smallest, 0.0))
+
+
+def arm_jacobian_derivatives(robot, frame: str = "ee", joints: int | None = None) -> ca.Function:
+    """``q -> (J_m, dJ, ddJ)``: ``J_m`` (3, m), ``dJ`` (3·m, m) with ``dJ[i + 3j, k] =
+    ∂J_m[i, j]/∂q_k`` and ``ddJ`` (3·m·m, m) its Jacobian in turn (CasADi's column-major
+    ``vec``), ``q_k`` the arm joints."""
+    n_arm = arm_size(robot, joints)
+    q, J_m = arm_jacobian(robot, frame, joints)
+    q_arm = q[int(robot.nq) - n_arm:]
+    dJ = ca.jacobian(ca.vec(J_m), q_arm)
+    ddJ = ca.jacobian(ca.vec(dJ), q_arm)
+    return ca.Function("arm_jacobian_derivatives", [q], [J_m, dJ, ddJ], ["q"],
+                       ["J_m", "dJ", "ddJ"])
+
+
+class ManipulabilityTask(Task):
+    """Cost ``1/2 ||v̇ − q̈_sa||²`` over the whole acceleration vector, ``q̈_sa = [0_base;
+    γ1 ∇²H q̇_m + γ2 (γ1 ∇H − q̇_m)]`` (Xing et al. eq. 13, see the module docstring),
+    computed inside the compiled stack from the quantities ``"q"`` and ``"v"``.
+
+    As the lowest level of a cascade, this cost over all joints makes the solution unique and
+    equals Xing's tertiary term ``P_A q̈_sa`` when no bound is active (the levels above leave
+    ``x₁* + range(P_A)`` free, and ``x₁*`` is orthogonal to it: DESIGN math note 3).
+
+    Args:
+        robot: the robot (``nq``, ``nv``, a symbolic ``"J[<frame>]"``).
+        frame: the end-effector frame.
+        gamma1: ``γ1`` [1/s] (paper: 5); gamma2: ``γ2`` [1/s] (paper: 0.5).
+        name: task name. joints: number of trailing arm joints.
+        block: the acceleration block of the decision vector (``None``: all of it).
+    """
+
+    def __init__(self, robot, frame: str = "ee", gamma1: float = 5.0, gamma2: float = 0.5,
+                 name: str | None = None, joints: int | None = None,
+                 block: str | None = None) -> None:
+        for label, value in (("gamma1", gamma1), ("gamma2", gamma2)):
+            if not value >= 0:
+                raise InvalidValueError(f"ManipulabilityTask {name!r}: {label} must be >= 0 "
+                                        f"[1/s], got {value!r}")
+        self.robot, self.frame = robot, frame
+        self.gamma1, self.gamma2 = float(gamma1), float(gamma2)
+        self.nq, self.nv = int(robot.nq), int(robot.nv)
+        self.n_arm = arm_size(robot, joints)
+        self.joints = joints
+        self.name, self.block = name, block
+
+    def target(self, q, v):
+        """``q̈_sa`` (nv,) as SX of the symbols ``q`` (nq,) and ``v`` (nv,)."""
+        q_sym, J_m = arm_jacobian(self.robot, self.frame, self.joints)
+        q_arm, qd_arm = q_sym[self.nq - self.n_arm:], v[self.nv - self.n_arm:]
+        _, gradient, hessian_qd = manipulability_expressions(J_m, q_arm, qd_arm)
+        arm = self.gamma1 * hessian_qd + self.gamma2 * (self.gamma1 * gradient - qd_arm)
+        arm = ca.substitute(arm, q_sym, q)
+        return ca.vertcat(ca.SX.zeros(self.nv - self.n_arm), arm)
+
+    def terms(self, stack):
+        x = velocity_block(stack, self.block, self.nv, f"ManipulabilityTask {self.name!r}")
+        q = stack.quantity("q", self.nq)
+        v = stack.quantity("v", self.nv)
+        return [Cost(x, self.target(q, v), 1.0, self.name)]
