@@ -1,4 +1,5 @@
-"""Cost of one kinematics update per catalogue robot: ``python -m wbc.robots.benchmark``.
+"""Cost of one kinematics update per robot (the catalogue and the fixed-base Panda):
+``python -m wbc.robots.benchmark``.
 
 Two tick patterns, each timed over many ticks on slowly changing configurations:
 
@@ -18,10 +19,10 @@ import time
 import numpy as np
 
 from .catalogue import load, names
+from .fixed_base import load_panda
 
 
-def _measure(name: str, ticks: int) -> dict[str, tuple[float, float]]:
-    robot = load(name)
+def _measure(robot, ticks: int) -> dict[str, tuple[float, float]]:
     rng = np.random.default_rng(0)
     q = robot.neutral()
     v = rng.normal(size=robot.nv) * 0.1
@@ -58,10 +59,12 @@ def main(argv: list[str] | None = None) -> None:
     machine = f"{platform.machine()} {platform.processor() or ''}".strip()
     print(f"machine: {machine}, python {platform.python_version()}")
     print(f"{'robot':<14} {'update+J median/p95 [us]':>26} {'full median/p95 [us]':>24}")
-    for name in names():
-        result = _measure(name, args.ticks)
+    robots = [load(name) for name in names()] + [load_panda()]
+    for robot in robots:
+        result = _measure(robot, args.ticks)
         light, full = result["update+J"], result["full"]
-        print(f"{name:<14} {light[0]:>14.1f} / {light[1]:<9.1f} {full[0]:>12.1f} / {full[1]:<9.1f}")
+        print(f"{robot.name:<14} {light[0]:>14.1f} / {light[1]:<9.1f} "
+              f"{full[0]:>12.1f} / {full[1]:<9.1f}")
 
 
 if __name__ == "__main__":
