@@ -178,11 +178,14 @@ def test_lower_above_upper():
         Bounds([0, 1], [1, 0], name="limits")
     with pytest.raises(wbc.BoundsOrderError, match="constraint 'c'"):
         LinearConstraint(np.eye(2), [0, 2], [1, 1], name="c")
-    # At run time the data come from parameters: the solve reports it as a status.
+    # workspace.set refuses crossed bounds; data written through a view (the unchecked path)
+    # or computed from parameters reach the solve, which reports them as a status.
     stack = wbc.Stack(2).add(LinearTask(np.eye(2), [0, 0], name="t"))
     stack.constrain(Bounds(-1, 1, name="limits"))
     ws = stack.workspace("daqp")
-    ws.set(**{"limits.lower": [-1, 2]})
+    with pytest.raises(wbc.BoundsOrderError, match="'limits'.lower/.upper"):
+        ws.set(**{"limits.lower": [-1, 2]})
+    ws.view("limits.lower")[:, 0] = [-1, 2]
     sol = ws.solve()
     assert sol.status is wbc.Status.INFEASIBLE
     assert "lower > upper at x[1]" in sol.message

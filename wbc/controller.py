@@ -265,12 +265,17 @@ class Controller:
         return ref
 
     def set_references(self, **references) -> None:
-        """Set references by keyword without solving (checked: names first, then shape, NaN,
-        inf; nothing is written if a name is unknown)."""
-        resolved = [(key, self._reference(key), value) for key, value in references.items()]
-        for key, (name, view, allow_inf), value in resolved:
-            view[...] = checked_array(value, view.shape,
-                                      f"reference {key!r} (parameter {name!r})", allow_inf)
+        """Set references by keyword without solving (checked: name, shape, NaN, inf).
+        All-or-nothing: every value is checked before any is written, so a refused call leaves
+        the controller as it was."""
+        views, checked = {}, {}
+        for key, value in references.items():
+            name, views[name], allow_inf = self._reference(key)
+            checked[name] = checked_array(value, views[name].shape,
+                                          f"reference {key!r} (parameter {name!r})", allow_inf)
+        self.workspace.check_bound_pairs(checked)
+        for name, value in checked.items():
+            views[name][...] = value
 
     # ------------------------------------------------------------------ the tick
     def step(self, q, v=None, **references) -> np.ndarray:
@@ -296,6 +301,8 @@ class Controller:
                 raise ShapeError(f"v must have shape ({self.nv},), got {v.shape}")
             if not all_finite(v):
                 raise NonFiniteError("v contains NaN or inf")
+        if references:  # before any write: a refused reference leaves the state as it was
+            self.set_references(**references)
         if self._q is not None:
             self._q[:] = q
         if self._needs_v:
@@ -307,8 +314,6 @@ class Controller:
             self.robot.update(q, v if self._needs_drift else None)
             for fill, view in self._fillers:
                 fill(view)
-        if references:
-            self.set_references(**references)
         t1 = time.perf_counter()
         solution = self.workspace.solve()
         solution.timings.model = t1 - t0

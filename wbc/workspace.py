@@ -21,7 +21,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.linalg import get_lapack_funcs
 
-from .checks import checked_array
+from .checks import check_bounds_order, checked_array
 from .compiler import SCALING_LP, CompiledStack, QPBlock
 from .errors import UnknownNameError, WbcError
 from .qp import Backend, QPResult, Status
@@ -176,12 +176,36 @@ class Workspace:
         return view
 
     def set(self, **values) -> Workspace:
-        """Set parameters by name (checked: shape, NaN, inf where illegal)."""
-        for name, value in values.items():
-            view = self.view(name)
-            _, shape, allow_inf = self.compiled.parameters[name]
-            view[...] = checked_array(value, shape, f"parameter {name!r}", allow_inf)
+        """Set parameters by name, checked: known name, shape, NaN (and inf where illegal), and
+        for a pair ``"<t>.lower"`` / ``"<t>.upper"`` (the numeric tasks' bounds) lower <=
+        upper. All-or-nothing: every value is checked before any is written, so a refused
+        call leaves the workspace as it was."""
+        checked = {name: self.checked_value(name, value) for name, value in values.items()}
+        self.check_bound_pairs(checked)
+        for name, value in checked.items():
+            self.view(name)[...] = value
         return self
+
+    def check_bound_pairs(self, values: dict[str, np.ndarray]) -> None:
+        """Raise :class:`~wbc.BoundsOrderError` if new ``values`` of a parameter pair
+        ``"<t>.lower"`` / ``"<t>.upper"`` would cross (a side not in ``values`` keeps its
+        current value)."""
+        for name in values:
+            stem, _, side = name.rpartition(".")
+            if side in ("lower", "upper") and f"{stem}.lower" in self._views \
+                    and f"{stem}.upper" in self._views:
+                lower = values.get(f"{stem}.lower", self._views[f"{stem}.lower"])
+                upper = values.get(f"{stem}.upper", self._views[f"{stem}.upper"])
+                check_bounds_order(lower, upper, f"parameters {stem!r}.lower/.upper")
+
+    def checked_value(self, name: str, value, what: str | None = None) -> np.ndarray:
+        """``value`` checked for parameter ``name`` (shape, NaN, inf where illegal), as an
+        array of its declared shape; nothing is written. ``what`` names it in errors."""
+        if name not in self._views:
+            raise UnknownNameError(f"unknown parameter {name!r}; parameters are "
+                                   f"{sorted(self._views)}")
+        _, shape, allow_inf = self.compiled.parameters[name]
+        return checked_array(value, shape, what or f"parameter {name!r}", allow_inf)
 
     def variable_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """``(lower, upper)`` bounds of the decision vector ``x`` (hard bounds and pins) as
