@@ -16,7 +16,13 @@ from typing import ClassVar
 import numpy as np
 
 from wbc.checks import all_finite
-from wbc.errors import BackendUnavailableError, ShapeError, UnknownNameError, WbcError
+from wbc.errors import (
+    BackendError,
+    BackendUnavailableError,
+    ShapeError,
+    UnknownNameError,
+    WbcError,
+)
 from wbc.qp import QPResult, Status
 
 
@@ -60,6 +66,13 @@ def check_option_names(backend: str, options: dict, known) -> None:
         )
 
 
+def backend_error(backend: str, stage: str, err: Exception) -> BackendError:
+    """A solver library's own exception ``err`` (a rejected option, a crash) as a
+    :class:`~wbc.BackendError` naming the backend and the stage (``"options"``, ``"setup"``,
+    ``"update"``, ``"solve"``), keeping the library's words."""
+    return BackendError(f"QP backend {backend!r} failed in {stage}: {type(err).__name__}: {err}")
+
+
 def check_problem(H, g, A, lA, uA, lb, ub) -> tuple[int, int]:
     """Shapes ``(n, m)`` of a QP in the form of :mod:`wbc.qp`, or :class:`ShapeError`."""
     n = np.shape(g)[0] if np.ndim(g) == 1 else -1
@@ -91,6 +104,9 @@ class BackendBase:
 
     Subclasses define ``name``, ``PROFILES`` (profile name -> settings dict) and the three
     hooks. Data given to the hooks have been shape-checked; the hooks must copy what they keep.
+    What a hook raises that is not a :class:`~wbc.WbcError` (the solver library's own
+    exceptions) leaves :meth:`setup`, :meth:`update` and :meth:`solve` as a
+    :class:`~wbc.BackendError` naming the backend.
     """
 
     name: str = "base"
@@ -109,7 +125,12 @@ class BackendBase:
         """Fix the structure (``n = H.shape[0]``, ``m = A.shape[0]``) and load the first data."""
         self.n, self.m = n, m = check_problem(H, g, A, lA, uA, lb, ub)
         self._shapes = ((n, n), (n,), (m, n), (m,), (m,), (n,), (n,))
-        self._setup(H, g, A, lA, uA, lb, ub)
+        try:
+            self._setup(H, g, A, lA, uA, lb, ub)
+        except WbcError:
+            raise
+        except Exception as err:
+            raise backend_error(self.name, "setup", err) from err
 
     def update(self, H, g, A, lA, uA, lb, ub) -> None:
         """Load new data of the shapes given to :meth:`setup` (no re-setup)."""
@@ -121,13 +142,23 @@ class BackendBase:
                 f"QP backend {self.name!r} was set up for (H, g, A, lA, uA, lb, ub) shapes "
                 f"{self._shapes}; got {shapes}"
             )
-        self._update(H, g, A, lA, uA, lb, ub)
+        try:  # free in CPython >= 3.11 when nothing is raised
+            self._update(H, g, A, lA, uA, lb, ub)
+        except WbcError:
+            raise
+        except Exception as err:
+            raise backend_error(self.name, "update", err) from err
 
     def solve(self, warm_start: np.ndarray | None = None) -> QPResult:
         """Solve the loaded problem, optionally warm-started from a primal guess of shape (n,)."""
         if self.n is None:
             raise WbcError(f"QP backend {self.name!r}: solve() called before setup()")
-        result = self._solve(warm_start)
+        try:
+            result = self._solve(warm_start)
+        except WbcError:
+            raise
+        except Exception as err:
+            raise backend_error(self.name, "solve", err) from err
         if result.status is Status.SOLVED and not all_finite(result.x):
             return failure(self.n, self.m, Status.NUMERICAL, "non-finite solution")
         return result

@@ -13,9 +13,9 @@ from __future__ import annotations
 import functools
 import importlib.util
 
-from wbc.errors import BackendUnavailableError
+from wbc.errors import BackendUnavailableError, WbcError
 
-from .base import BackendBase, silenced
+from .base import BackendBase, backend_error, silenced
 from .casadi_backend import CasadiConicBackend
 from .clarabel_backend import ClarabelBackend
 from .daqp_backend import DaqpBackend
@@ -90,16 +90,22 @@ def make_backend(name: str, profile: str = "default", **options) -> BackendBase:
         BackendUnavailableError: unknown name, or its package is not installed; the message
             lists the available names.
         UnknownNameError: unknown profile or option name (the message lists the known ones).
+        BackendError: the solver library rejected an option.
     """
     family, _, solver = name.partition(":")
-    if name in NATIVE and _installed(NATIVE[name][1]):
-        return NATIVE[name][0](profile, **options)
-    if name == "qpoases" and _has_conic("qpoases"):
-        return CasadiConicBackend("qpoases", profile, name="qpoases", **options)
-    if family == "casadi" and solver and _has_conic(solver):
-        return CasadiConicBackend(solver, profile, **options)
-    if family == "qpsolvers" and solver in _qpsolvers_solvers():
-        return QpsolversBackend(solver, profile, **options)
+    try:  # a solver library rejecting an option raises its own exception type
+        if name in NATIVE and _installed(NATIVE[name][1]):
+            return NATIVE[name][0](profile, **options)
+        if name == "qpoases" and _has_conic("qpoases"):
+            return CasadiConicBackend("qpoases", profile, name="qpoases", **options)
+        if family == "casadi" and solver and _has_conic(solver):
+            return CasadiConicBackend(solver, profile, **options)
+        if family == "qpsolvers" and solver in _qpsolvers_solvers():
+            return QpsolversBackend(solver, profile, **options)
+    except WbcError:
+        raise
+    except Exception as err:
+        raise backend_error(name, "options", err) from err
     raise BackendUnavailableError(
         f"unknown or unavailable QP backend {name!r}; available: "
         f"{', '.join(available_backends())} (also 'qpsolvers:<solver>' for "
