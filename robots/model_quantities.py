@@ -13,11 +13,11 @@ name                            shape       v?     value (at the robot's last ``
 ``manipulability_gradient[f]``  (n_arm, 1)         its gradient w.r.t. the arm joints
 ==============================  ==========  =====  ===============================================
 
-``pose``, ``J``, ``Jdot_v`` and ``J_base`` have symbolic forms (CasADi functions of ``q``, or
-``(q, v)`` for ``Jdot_v``, with one output each, built from
-:meth:`~wbc.robots.pinocchio_robot.PinocchioRobot.symbolic_frame` /
-:meth:`~wbc.robots.pinocchio_robot.PinocchioRobot.symbolic_drift`), so
-``kinematics="compiled"`` inlines them; the others are filled numerically. The compiled forms
+``pose``, ``J``, ``Jdot_v``, ``J_base``, ``com`` and ``J_com`` have symbolic forms (CasADi
+functions of ``q``, or ``(q, v)`` for ``Jdot_v``, with one output each, built from
+:meth:`~wbc.robots.pinocchio_robot.PinocchioRobot.symbolic_frame`, ``symbolic_drift``,
+``symbolic_com`` and ``symbolic_com_jacobian``), so ``kinematics="compiled"`` inlines them;
+the manipulability and its gradient are filled numerically. The compiled forms
 are cached on the robot's shared function cache, so a clone's registry reuses them.
 
 Fillers write element-wise into ``out`` (the shape above; possibly a column-major view into a
@@ -90,9 +90,10 @@ def register_quantities(robot) -> QuantityRegistry:
         doc="frame Jacobian (6, nv) in the base frame's axes (world axes for a fixed base)")
     registry.register(
         "com", shape=lambda _: (3, 1), fill=lambda _, out: robot.com(None, out[:, 0]),
-        doc="centre of mass (3, 1) [m], world")
+        symbolic=lambda _: robot.symbolic_com(), doc="centre of mass (3, 1) [m], world")
     registry.register(
         "J_com", shape=lambda _: (3, nv), fill=lambda _, out: robot.com_jacobian(None, out),
+        symbolic=lambda _: robot.symbolic_com_jacobian(),
         doc="centre-of-mass Jacobian (3, nv) [m/s per unit v], world axes")
     registry.register(
         "manipulability", argument="frame", arguments=frames, shape=lambda f: (1, 1),

@@ -80,6 +80,7 @@ from .planar_base import HOLONOMIC_MAP, UNICYCLE_MAP, PlanarBase
 from .symbolic import (
     check_joints,
     pose_rate_matrix,
+    symbolic_center_of_mass,
     symbolic_frame_drift,
     symbolic_frame_kinematics,
 )
@@ -466,8 +467,7 @@ class PinocchioRobot:
         pin_reference = pin.ReferenceFrame.LOCAL if reference == "local" else _LWA
         twist = pin.getFrameVelocity(self.model, self.data, self.frame_id(frame), pin_reference)
         out = self._out(out, (6,), "frame_velocity")
-        out[:3] = twist.linear
-        out[3:] = twist.angular
+        out[:] = twist.vector  # [linear; angular], one conversion
         if reference == "base" and self.base is not None:
             self._rotate_to_base(out)
         return out
@@ -491,7 +491,7 @@ class PinocchioRobot:
         out[:] = acc.vector  # [linear; angular], one conversion
         if reference == "base" and self.base is not None:
             twist = pin.getFrameVelocity(self.model, self.data, fid, _LWA)
-            body = np.concatenate([twist.linear, twist.angular])
+            body = twist.vector.copy()  # [linear; angular]
             self._rotate_to_base(out)
             self._rotate_to_base(body)
             yaw_rate = self._qdot[2]
@@ -534,11 +534,20 @@ class PinocchioRobot:
             return joint_space
         # pinocchio's configuration is ours (scalar root joints PX, PY, RZ), so the 1-DoF
         # chain kinematics give pose and J_pin = ∂(twist)/∂q̇ directly; only the base columns
-        # change, by H(θ) = Rz(θ) B as in update()
+        # change, by S(q)
         q = ca.SX.sym("q", self.nq)
         pose, J_pin = joint_space(q)
-        J = ca.horzcat(J_pin[:, :3] @ pose_rate_matrix(q[2], self.base.body_map), J_pin[:, 3:])
+        J = self._symbolic_velocity_map_product(q, J_pin)
         return ca.Function(joint_space.name(), [q], [pose, J], ["q"], ["pose", "J"])
+
+    def _symbolic_velocity_map_product(self, q: ca.SX, matrix: ca.SX) -> ca.SX:
+        """``matrix S(q)``: a matrix over ``q̇`` (nq columns) made one over ``v``; only the base
+        columns change, by ``H(θ) = Rz(θ) B`` as in :meth:`update` (lean: no products with the
+        identity block)."""
+        if self.base is None:
+            return matrix
+        return ca.horzcat(matrix[:, :3] @ pose_rate_matrix(q[2], self.base.body_map),
+                          matrix[:, 3:])
 
     def _symbolic_configuration_rate(self, q: ca.SX, v: ca.SX) -> ca.SX:
         """``q̇ = S(q) v``: base pose rates ``H(θ) v_b`` [m/s, m/s, rad/s], joint rates as is."""
@@ -561,6 +570,23 @@ class PinocchioRobot:
         return self._cached("drift", fid,
                             lambda: symbolic_frame_drift(self.symbolic_frame(fid), rate))
 
+    def symbolic_com(self) -> ca.Function:
+        """``q -> com (3, 1)``: :meth:`com` as a CasADi function (cached, shared by clones)."""
+        return self._cached("com", -1, lambda: symbolic_center_of_mass(self.model))
+
+    def symbolic_com_jacobian(self) -> ca.Function:
+        """``q -> J_com (3, nv)``: :meth:`com_jacobian` as a CasADi function (cached), the
+        derivative of :meth:`symbolic_com` times ``S(q)``."""
+
+        def build() -> ca.Function:
+            q = ca.SX.sym("q", self.nq)
+            jacobian = ca.jacobian(self.symbolic_com()(q), q)
+            return ca.Function("com_jacobian", [q],
+                               [self._symbolic_velocity_map_product(q, jacobian)], ["q"],
+                               ["J_com"])
+
+        return self._cached("com_jacobian", -1, build)
+
     # ------------------------------------------------------------------ centre of mass
     def com(self, q=None, out: np.ndarray | None = None) -> np.ndarray:
         """Centre of mass (3,) [m] of the whole robot in the world."""
@@ -582,8 +608,9 @@ class PinocchioRobot:
 
     @property
     def mass(self) -> float:
-        """Total mass [kg]."""
-        return float(sum(inertia.mass for inertia in self.model.inertias))
+        """Total mass [kg] of the bodies the joints carry (those of :meth:`com`: a fixed base's
+        root link, attached to the universe, is not counted, as in pinocchio)."""
+        return float(sum(inertia.mass for inertia in list(self.model.inertias)[1:]))
 
     # ------------------------------------------------------------------ manipulability
     def _arm_jacobian_and_derivatives(self, frame) -> tuple[np.ndarray, np.ndarray]:

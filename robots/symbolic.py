@@ -20,10 +20,11 @@ plain revolute joints first.)
 
 Conventions
 -----------
-Poses are world poses (4 × 4; translation [m]); Jacobians ``(6, nv)`` have rows ``[linear;
-angular]``: the frame origin's velocity [m/s] and the angular velocity [rad/s] in world axes,
-per unit joint rate (pinocchio's ``LOCAL_WORLD_ALIGNED``). Drifts ``J̇ v`` (6 × 1) are one
-forward-mode directional derivative of ``J(q) v`` along ``q̇``.
+Poses are world poses (4 × 4; translation [m]) and the centre of mass a world point [m];
+Jacobians ``(6, nv)`` have rows ``[linear; angular]``: the frame origin's velocity [m/s] and
+the angular velocity [rad/s] in world axes, per unit joint rate (pinocchio's
+``LOCAL_WORLD_ALIGNED``). Drifts ``J̇ v`` (6 × 1) are one forward-mode directional derivative
+of ``J(q) v`` along ``q̇``.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from wbc.errors import ShapeError, WbcError
 
 __all__ = [
     "check_joints",
+    "symbolic_center_of_mass",
     "function_name",
     "pose_rate_matrix",
     "symbolic_frame_drift",
@@ -82,6 +84,31 @@ def _rotation(axis: np.ndarray, angle) -> ca.SX:
     return ca.SX.eye(3) + ca.sin(angle) * K + (1 - ca.cos(angle)) * (K @ K)
 
 
+def _forward(model: pin.Model, q: ca.SX, joints: list[int]):
+    """World rotation and position after each joint's motion, and each joint's Jacobian
+    column data ``(idx_v, kind, world axis, joint origin)``, for ``joints`` in increasing index
+    order (every joint's parent before it; the parents needed must be in the list)."""
+    poses = {0: (ca.SX.eye(3), ca.SX.zeros(3))}
+    columns = {}
+    for j in joints:
+        joint, M = model.joints[j], model.jointPlacements[j]
+        kind_axis = _joint_kind(joint)
+        if kind_axis is None:
+            check_joints(model, model.name or "model")  # raises, naming the joint
+        kind, axis = kind_axis
+        R, p = poses[model.parents[j]]
+        p = p + R @ ca.DM(M.translation)
+        R = R @ ca.DM(M.rotation)
+        world_axis = R @ ca.DM(axis)
+        columns[j] = (joint.idx_v, kind, world_axis, p)
+        if kind == "R":
+            R = R @ _rotation(axis, q[joint.idx_q])
+        else:
+            p = p + world_axis * q[joint.idx_q]
+        poses[j] = (R, p)
+    return poses, columns
+
+
 def symbolic_frame_kinematics(model: pin.Model, frame_id: int) -> ca.Function:
     """CasADi function ``q -> (pose (4, 4), J (6, nv))`` of a frame of a model made of
     supported joints: world pose and Jacobian in world-aligned axes at the frame origin
@@ -96,27 +123,13 @@ def symbolic_frame_kinematics(model: pin.Model, frame_id: int) -> ca.Function:
     while j > 0:
         chain.append(j)
         j = model.parents[j]
-    R, p = ca.SX.eye(3), ca.SX.zeros(3)
-    columns = []  # (idx_v, kind, world axis, joint origin)
-    for j in reversed(chain):
-        joint, M = model.joints[j], model.jointPlacements[j]
-        kind_axis = _joint_kind(joint)
-        if kind_axis is None:
-            check_joints(model, model.name or "model")  # raises, naming the joint
-        kind, axis = kind_axis
-        p = p + R @ ca.DM(M.translation)
-        R = R @ ca.DM(M.rotation)
-        world_axis = R @ ca.DM(axis)
-        columns.append((joint.idx_v, kind, world_axis, p))
-        if kind == "R":
-            R = R @ _rotation(axis, q[joint.idx_q])
-        else:
-            p = p + world_axis * q[joint.idx_q]
+    poses, columns = _forward(model, q, chain[::-1])
+    R, p = poses[frame.parentJoint]
     p_f = p + R @ ca.DM(frame.placement.translation)
     R_f = R @ ca.DM(frame.placement.rotation)
     pose = ca.vertcat(ca.horzcat(R_f, p_f), ca.DM([[0, 0, 0, 1]]))
     J = ca.SX.zeros(6, model.nv)
-    for idx_v, kind, axis, origin in columns:
+    for idx_v, kind, axis, origin in columns.values():
         if kind == "R":
             J[:3, idx_v] = ca.cross(axis, p_f - origin)
             J[3:, idx_v] = axis
@@ -124,6 +137,21 @@ def symbolic_frame_kinematics(model: pin.Model, frame_id: int) -> ca.Function:
             J[:3, idx_v] = axis
     return ca.Function(function_name("kinematics", frame.name), [q], [pose, J], ["q"],
                        ["pose", "J"])
+
+
+def symbolic_center_of_mass(model: pin.Model) -> ca.Function:
+    """CasADi function ``q -> com (3, 1)`` [m]: the centre of mass of the bodies the joints
+    carry, in the world (as pinocchio's ``centerOfMass``: a body attached to the universe, such
+    as a fixed base's root link, is not counted)."""
+    q = ca.SX.sym("q", model.nq)
+    poses, _ = _forward(model, q, list(range(1, model.njoints)))
+    weighted, mass = ca.SX.zeros(3), 0.0
+    for j in range(1, model.njoints):
+        inertia = model.inertias[j]
+        R, p = poses[j]
+        weighted = weighted + inertia.mass * (p + R @ ca.DM(inertia.lever))
+        mass += inertia.mass
+    return ca.Function("center_of_mass", [q], [weighted / mass], ["q"], ["com"])
 
 
 def symbolic_frame_drift(

@@ -184,6 +184,7 @@ def test_centre_of_mass_jacobian_along_integrate(robot):
         difference = (robot.com(robot.integrate(q, v, H)) -
                       robot.com(robot.integrate(q, v, -H))) / (2.0 * H)
         assert scaled_error(robot.com_jacobian(q) @ v, difference) < 1e-7
+    assert robot.mass == pytest.approx(robot.data.mass[0], rel=1e-14)  # the bodies of com
 
 
 def test_manipulability_gradient_against_finite_differences(robot):
@@ -350,7 +351,7 @@ def test_every_quantity_fills_its_getter_and_equals_its_symbolic_form(robot):
             value = np.array(function(q, v) if quantity.needs_v else function(q))
             assert scaled_error(value, expected) < 1e-12, name
             symbolic.add(name)
-    assert symbolic >= {"pose[ee]", "J[ee]", "Jdot_v[ee]", "J_base[ee]"}
+    assert symbolic >= {"pose[ee]", "J[ee]", "Jdot_v[ee]", "J_base[ee]", "com", "J_com"}
 
 
 # ------------------------------------------------------------------------ unsupported joints
