@@ -1,4 +1,4 @@
-"""Joint limits of a mobile manipulator as plain arrays."""
+"""Position, velocity and acceleration limits of a robot as plain arrays."""
 
 from __future__ import annotations
 
@@ -16,11 +16,11 @@ class Limits:
     """Position, velocity and acceleration limits.
 
     Position limits are over the configuration ``q`` (size ``nq``); velocity and acceleration
-    limits are over the velocity coordinates ``v`` (size ``nv``) — the base's own velocity
-    coordinates first (see the base model), then the arm joints. Units follow the coordinates:
-    [m] and [rad] for positions, [m/s] and [rad/s] for velocities, [m/s²] and [rad/s²] for
-    accelerations. Unbounded entries are ``±inf`` (the base pose x, y, θ always; continuous arm
-    joints too).
+    limits are over the velocity coordinates ``v`` (size ``nv``) — for a mobile base its own
+    velocity coordinates first (see the base model), then the arm joints. Units follow the
+    coordinates: [m] and [rad] for positions, [m/s] and [rad/s] for velocities, [m/s²] and
+    [rad/s²] for accelerations. Unbounded entries are ``±inf`` (a base pose x, y, θ always;
+    continuous arm joints too).
 
     Attributes:
         q_lower, q_upper: position limits, shape ``(nq,)``.

@@ -9,9 +9,9 @@ import wbc.robots as robots
 from wbc.errors import BoundsOrderError, NonFiniteError, ShapeError, UnknownNameError
 
 
-@pytest.fixture(scope="module", params=["tiago_panda", "mecanum_gen3"])
+@pytest.fixture(scope="module", params=["tiago_panda", "mecanum_gen3", "panda"])
 def robot(request):
-    return robots.load(request.param)
+    return robots.load_panda() if request.param == "panda" else robots.load(request.param)
 
 
 @pytest.mark.parametrize(
