@@ -15,17 +15,19 @@ from __future__ import annotations
 
 import math
 import os
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
 
-from wbc.errors import ShapeError, UnknownNameError
+from wbc.errors import ModelLoadError, ShapeError, UnknownNameError
 
 from .resources import urdf_path
 
-__all__ = ["Arm", "arm_from_model", "arm_from_urdf", "build_serial_arm", "panda", "ur10", "ur5"]
+__all__ = ["Arm", "arm_from_model", "arm_from_urdf", "build_serial_arm", "load_urdf_model",
+           "panda", "ur10", "ur5"]
 
 
 @dataclass
@@ -145,6 +147,34 @@ def _with_scalar_joints(model: pin.Model) -> tuple[pin.Model, np.ndarray]:
     return out, np.array(unbounded, dtype=bool)
 
 
+def load_urdf_model(path: str) -> pin.Model:
+    """``pin.buildModelFromUrdf(path)``, or one :class:`~wbc.ModelLoadError` naming the file
+    and the parser's reason. urdfdom writes its reasons to the C-level stderr (file
+    descriptor 2, out of reach of ``sys.stderr``): they are captured there and put in the
+    message instead of being printed."""
+    if not os.path.isfile(path):
+        raise ModelLoadError(f"URDF file {path!r} does not exist")
+    with tempfile.TemporaryFile(mode="w+b") as captured:
+        saved = os.dup(2)
+        os.dup2(captured.fileno(), 2)
+        try:
+            model = pin.buildModelFromUrdf(path)
+            reason = ""
+        except ValueError as err:  # pinocchio's words: "does not contain a valid URDF model"
+            model, reason = None, str(err)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        captured.seek(0)
+        details = captured.read().decode(errors="replace")
+    if model is None:
+        lines = [line.strip() for line in details.splitlines()
+                 if line.strip().startswith("Error:")]
+        why = "; ".join(line.removeprefix("Error:").strip() for line in lines) or reason
+        raise ModelLoadError(f"URDF file {path!r} cannot be loaded: {why}")
+    return model
+
+
 def arm_from_urdf(
     path: str | os.PathLike[str],
     ee_frame: str,
@@ -175,7 +205,7 @@ def arm_from_urdf(
         The :class:`Arm`.
     """
     path = os.fspath(path)
-    model = pin.buildModelFromUrdf(path)
+    model = load_urdf_model(path)
     if locked_joints:
         missing = [j for j in locked_joints if not model.existJointName(j)]
         if missing:

@@ -15,6 +15,7 @@ from .errors import (
     InfeasibleError,
     InvalidValueError,
     MissingDependencyError,
+    ModelLoadError,
     NonAffineError,
     NonFiniteError,
     ShapeError,
@@ -33,8 +34,8 @@ __version__ = "0.1.0"
 __all__ = [
     "Backend", "BackendError", "BackendUnavailableError", "BoundsOrderError", "CompiledStack",
     "Controller", "Cost", "Equality", "InfeasibleError", "Inequality", "InvalidValueError",
-    "LevelResult", "MissingDependencyError", "NonAffineError", "NonFiniteError", "Parameter",
-    "QPResult", "ShapeError", "Solution",
+    "LevelResult", "MissingDependencyError", "ModelLoadError", "NonAffineError",
+    "NonFiniteError", "Parameter", "QPResult", "ShapeError", "Solution",
     "Stack", "Status",
     "Task", "Term", "Timings", "UnknownNameError", "VariableBounds", "Variables", "WbcError",
     "Workspace",

@@ -46,6 +46,11 @@ class InfeasibleError(WbcError, RuntimeError):
     """A problem has no solution; raised only where a status cannot be returned instead."""
 
 
+class ModelLoadError(WbcError, ValueError):
+    """A robot model file (URDF) is missing or cannot be parsed; the message names the file and
+    gives the parser's reason."""
+
+
 class MissingDependencyError(WbcError, ImportError):
     """An optional package a feature needs is not installed; the message says how to install
     it (e.g. ``pip install 'wbc[pink]'``)."""
