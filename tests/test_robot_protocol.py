@@ -355,11 +355,26 @@ def test_every_quantity_fills_its_getter_and_equals_its_symbolic_form(robot):
 
 
 # ------------------------------------------------------------------------ unsupported joints
-@pytest.mark.parametrize("joint", [pin.JointModelSphericalZYX(), pin.JointModelTranslation()])
-def test_an_unsupported_joint_is_an_error_at_load_time(joint):
+def odd_model(joint) -> pin.Model:
+    """A yaw joint carrying ``joint`` (named ``"odd"``) and a frame ``"tip"``."""
     model = pin.Model()
     parent = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "yaw")
-    model.addJoint(parent, joint, pin.SE3.Identity(), "odd")
+    odd = model.addJoint(parent, joint, pin.SE3.Identity(), "odd")
+    model.appendBodyToJoint(odd, pin.Inertia.FromBox(1.0, 0.1, 0.1, 0.1), pin.SE3.Identity())
+    model.addFrame(pin.Frame("tip", odd, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME))
+    return model
+
+
+@pytest.mark.parametrize("joint", [pin.JointModelSphericalZYX(), pin.JointModelTranslation(),
+                                   pin.JointModelHZ(0.1)])
+def test_an_unsupported_joint_is_an_error_at_load_time(joint):
+    model = odd_model(joint)
     assert model.nq == model.nv  # passes the size check: the joint type is what is refused
     with pytest.raises(wbc.WbcError, match=r"odd \(JointModel"):
         FixedBaseRobot(model, name="odd_arm")
+
+
+def test_an_unsupported_joint_in_a_mobile_robots_arm_is_an_error_at_load_time():
+    model = odd_model(pin.JointModelHZ(0.1))  # helical: 1-DoF, so the arm accepts it
+    with pytest.raises(wbc.WbcError, match=r"odd \(JointModelHZ"):
+        wbc.robots.MobileManipulator(wbc.robots.mecanum_base(), model, ee_frame="tip")
