@@ -95,6 +95,8 @@ class CompiledStack:
         freeze_tol: half-width of the band frozen rows are kept in (relative).
         quantities: names of the parameters declared as model quantities
             (:meth:`wbc.Stack.quantity`), which a controller fills from its robot.
+        x_above_offset: first index in ``p`` of :meth:`wbc.Stack.x_above` (``n`` entries the
+            workspace writes after every level), or ``None`` if no task uses it.
     """
 
     variables: Variables
@@ -106,6 +108,7 @@ class CompiledStack:
     rank_tol: float
     freeze_tol: float
     quantities: frozenset[str] = frozenset()
+    x_above_offset: int | None = None
 
     @property
     def n(self) -> int:
@@ -142,7 +145,8 @@ def compile_stack(stack) -> CompiledStack:
 
     params = list(stack.parameters.values())
     scale_syms = {k: ca.SX.sym(f"scale_{k}") for k in sorted(stack.scaling_levels)}
-    p_sym = ca.vertcat(*[ca.vec(P.symbol) for P in params], *scale_syms.values())
+    x_above = [] if stack._x_above is None else [stack._x_above]
+    p_sym = ca.vertcat(*[ca.vec(P.symbol) for P in params], *scale_syms.values(), *x_above)
     layout, offset = {}, 0
     for P in params:
         layout[P.name] = (offset, P.shape, P.allow_inf)
@@ -154,13 +158,15 @@ def compile_stack(stack) -> CompiledStack:
             defaults[o:o + P.size] = P.default.reshape(-1, order="F")
     scale_index = {k: offset + i for i, k in enumerate(scale_syms)}
     defaults[list(scale_index.values())] = 1.0
-
-    C_h, l_h, u_h, lb, ub = _hard_constraints(stack, x, n)
-    W = ca.SX(ca.DM(stack.metric))
+    x_above_offset = offset + len(scale_syms) if x_above else None
+    if x_above:
+        defaults[x_above_offset:] = 0.0
 
     blocks: list[QPBlock] = []
     n_e = n_s = 0
     for k in sorted(stack.levels):
+        C_h, l_h, u_h, lb, ub = _hard_constraints(stack, x, n, k)
+        W = _metric(stack, k)
         entries = stack.levels[k]
         names = tuple(dict.fromkeys(e.task_name for e in entries))
         costs, softs = _level_terms(entries, x)
@@ -200,6 +206,8 @@ def compile_stack(stack) -> CompiledStack:
         n_s += m_s
 
     if stack.min_norm:
+        C_h, l_h, u_h, lb, ub = _hard_constraints(stack, x, n, None)
+        W = _metric(stack, None)
         fn = _block_function("min_norm", p_sym, W, ca.SX.zeros(n), C_h, l_h, u_h, lb, ub,
                              ca.SX(n, 0))
         blocks.append(QPBlock(MIN_NORM, None, (), fn, n_z=n, m_hard=C_h.shape[0], m_soft=0,
@@ -207,7 +215,25 @@ def compile_stack(stack) -> CompiledStack:
                               n_frozen_soft=n_s, n_frozen_cost=n_e, m_frozen_eq=min(n_e, n),
                               scale_index=None))
     return CompiledStack(variables, layout, defaults, tuple(blocks), n_e, n_s, stack.rank_tol,
-                         stack.freeze_tol, frozenset(P.name for P in params if P.quantity))
+                         stack.freeze_tol, frozenset(P.name for P in params if P.quantity),
+                         x_above_offset)
+
+
+#: A per-tick mobility entry at or below this value is zero: the variable is pinned.
+ZERO_MOBILITY = 1e-12
+
+
+def _metric(stack, priority: int | None) -> ca.SX:
+    """``W`` of the regularisation at level ``priority`` (``None``: the min-norm level):
+    ``M⁺`` where the mobility holds, else the identity."""
+    n = stack.variables.n
+    if not stack.mobility_holds_at(priority):
+        return ca.SX.eye(n)
+    m = stack.mobility_diagonal
+    if m is None:
+        return ca.SX(ca.DM(stack.metric))
+    free = m > ZERO_MOBILITY
+    return ca.diag(ca.if_else(free, 1.0 / ca.if_else(free, m, 1.0), 0.0))
 
 
 def _level_terms(entries, x):
@@ -236,11 +262,15 @@ def _level_terms(entries, x):
     return costs, softs
 
 
-def _hard_constraints(stack, x, n):
-    """Rows ``l_h <= C_h x <= u_h`` and bounds ``lb <= x <= ub`` of every level."""
+def _hard_constraints(stack, x, n, priority: int | None):
+    """Rows ``l_h <= C_h x <= u_h`` and bounds ``lb <= x <= ub`` of level ``priority``
+    (``None``: the min-norm level): constraints of every level, those local to this level, and
+    the mobility's pins where it holds."""
     rows, lows, ups = [], [], []
     lb, ub = ca.SX(ca.DM.ones(n) * -np.inf), ca.SX(ca.DM.ones(n) * np.inf)
     for e in stack.constraints:
+        if not e.holds_at(priority):
+            continue
         term, what = e.term, f"constraint {e.task_name!r}"
         if isinstance(term, VariableBounds):
             sl = stack.variables.slice(term.block)
@@ -260,7 +290,12 @@ def _hard_constraints(stack, x, n):
         rows.append(aff.C)
         lows.append(lo)
         ups.append(up)
-    if stack.pinned is not None:
+    pins = stack.mobility_holds_at(priority)
+    if pins and stack.mobility_diagonal is not None:
+        free = stack.mobility_diagonal > ZERO_MOBILITY
+        lb = ca.fmax(lb, ca.if_else(free, -np.inf, 0.0))
+        ub = ca.fmin(ub, ca.if_else(free, np.inf, 0.0))
+    if pins and stack.pinned is not None:
         for row in stack.pinned:  # zero-mobility directions: bounds if axis-aligned, else rows
             axis = np.flatnonzero(np.abs(row) > 1e-12)
             if axis.size == 1:

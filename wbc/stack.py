@@ -47,6 +47,12 @@ class Entry:
     term: Term
     task_name: str
     weight: float | ca.SX = 1.0
+    levels: frozenset[int] | None = None  # hard constraints: where they hold (None: everywhere)
+
+    def holds_at(self, priority: int | None) -> bool:
+        """Whether this hard constraint is part of the QP of level ``priority`` (``None``: the
+        final minimum-norm level, which only constraints of every level reach)."""
+        return self.levels is None or (priority is not None and priority in self.levels)
 
 
 class Stack:
@@ -66,7 +72,9 @@ class Stack:
         metric: ``W`` (symmetric PSD ``(n, n)``, or ``(n,)`` diagonal); identity by default.
         mobility: alternative to ``metric``: a symmetric PSD mobility ``M = W⁻¹``. Directions
             in its null space are pinned to zero (hard), and ``W = M⁺`` elsewhere — so that the
-            one-level stack reproduces ``M Jᵀ(J M Jᵀ + ρ² I)⁻¹ v`` (DESIGN math note 1).
+            one-level stack reproduces ``M Jᵀ(J M Jᵀ + ρ² I)⁻¹ v`` (DESIGN math note 1). A
+            mobility that changes every tick, or that holds at some levels only: see
+            :meth:`set_mobility`.
         min_norm: add a final level minimising ``xᵀ W x`` under everything above, which makes
             the answer unique when the levels leave freedom. Default: on when the last level
             is undamped.
@@ -116,6 +124,9 @@ class Stack:
         if metric is not None and mobility is not None:
             raise WbcError("give either metric or mobility, not both")
         self.metric, self.pinned = _metric_and_pins(n, metric, mobility)
+        self.mobility_diagonal: ca.SX | None = None  # per-tick diagonal (set_mobility)
+        self.mobility_levels: frozenset[int] | None = None  # None: every level
+        self._x_above: ca.SX | None = None
         self._min_norm = min_norm
         self.rank_tol = float(rank_tol)
         self.freeze_tol = float(freeze_tol)
@@ -197,15 +208,104 @@ class Stack:
         self._compiled = None
         return self
 
-    def constrain(self, task: Task) -> Stack:
-        """Add a hard constraint (equality, inequality or bounds), enforced at every level."""
+    def constrain(self, task: Task, levels=None) -> Stack:
+        """Add a hard constraint (equality, inequality or bounds).
+
+        Args:
+            levels: ``None`` (default): enforced at every level, the minimum-norm level
+                included. An iterable of priorities: a *level-local* constraint, part of those
+                levels' QPs only. Later levels do not inherit it: like every level they keep
+                only the earlier levels' task rows (cost rows at their optimal values, soft
+                rows at their optimal slacks), so they may move what it held. The minimum-norm
+                level takes only constraints of every level.
+        """
+        levels = self._levels(levels, "constrain")
         entries = self._entries(task, 1.0)
         for e in entries:
             if isinstance(e.term, Cost):
                 raise WbcError(f"task {e.task_name!r} is a cost; add it with stack.add()")
+            e.levels = levels
         self.constraints.extend(entries)
         self._compiled = None
         return self
+
+    def set_mobility(self, mobility, levels=None) -> Stack:
+        """Set the mobility ``M = W⁻¹`` of the regularisation ``ρ²/2 · xᵀ W x``.
+
+        Args:
+            mobility: a constant symmetric PSD ``(n, n)`` matrix or diagonal ``(n,)`` (as the
+                constructor's ``mobility``), or a *per-tick* diagonal: a CasADi SX column of
+                ``n`` entries built from this stack's parameters (e.g. ``(1 − ψ, ..., ψ, ...)``
+                with ``ψ = stack.parameter("psi", 1)`` or an expression of model quantities).
+                It is evaluated every tick inside the compiled functions: no recompilation,
+                and its singular values are exact — an entry ``m_i <= 1e-12`` pins ``x_i = 0``
+                (a bound ``0 <= x_i <= 0``, added per tick) and takes ``W_ii = 0``; any other
+                entry takes ``W_ii = 1/m_i``. Entries must be ``>= 0`` (negative ones are
+                treated as zero: pinned).
+            levels: priorities at which the mobility holds (its metric *and* its pins, both
+                level-local, see :meth:`constrain`); ``None``: every level and the
+                minimum-norm level. Elsewhere the metric is the identity and nothing is
+                pinned. Sorour et al.'s eq. 9 needs ``levels=[0]``: the pins of ψ ∈ {0, 1}
+                hold while the task is solved, and the null-space level below still moves the
+                pinned joints.
+        """
+        n = self.variables.n
+        if isinstance(mobility, (ca.SX, ca.MX, ca.DM)):
+            if isinstance(mobility, ca.MX):
+                raise WbcError("mobility: MX expressions are not supported, build with ca.SX")
+            diagonal = ca.SX(mobility)
+            if diagonal.shape == (1, n):
+                diagonal = diagonal.T
+            if diagonal.shape != (n, 1):
+                raise ShapeError(f"a per-tick mobility is the diagonal, an SX column of {n} "
+                                 f"entries; got shape {diagonal.shape}")
+            if ca.depends_on(diagonal, self.variables.symbol):
+                raise WbcError("mobility must not depend on the decision vector")
+            self.metric, self.pinned = np.eye(n), None
+            self.mobility_diagonal = diagonal
+        else:
+            self.metric, self.pinned = _metric_and_pins(n, None, mobility)
+            self.mobility_diagonal = None
+        self.mobility_levels = self._levels(levels, "set_mobility")
+        self._compiled = None
+        return self
+
+    def x_above(self) -> ca.SX:
+        """The decision vector found by the levels above, as a symbol for task expressions.
+
+        When a level is evaluated, this holds the cascade's ``x`` so far (the last solved
+        level's optimum; zeros at the first level). It makes the exact QP form of an additive
+        null-space term possible (DESIGN math note 3): a level minimising
+        ``||x − x_above − λz||²`` under the frozen rows of the level above.
+
+        Returns:
+            SX column of ``n`` entries.
+        """
+        if self._x_above is None:
+            self._x_above = ca.SX.sym("x_above", self.variables.n)
+            self._compiled = None
+        return self._x_above
+
+    @staticmethod
+    def _levels(levels, what: str) -> frozenset[int] | None:
+        if levels is None:
+            return None
+        if isinstance(levels, (int, np.integer)):
+            levels = [levels]
+        try:
+            chosen = frozenset(int(k) for k in levels)
+        except (TypeError, ValueError):
+            raise WbcError(f"{what}: levels must be None or integer priorities, "
+                           f"got {levels!r}") from None
+        if not chosen:
+            raise WbcError(f"{what}: levels is empty (use None for every level)")
+        return chosen
+
+    def mobility_holds_at(self, priority: int | None) -> bool:
+        """Whether the mobility (metric and pins) is part of level ``priority``'s QP
+        (``None``: the minimum-norm level)."""
+        return self.mobility_levels is None or (priority is not None
+                                                and priority in self.mobility_levels)
 
     def _entries(self, task: Task, weight) -> list[Entry]:
         if not isinstance(task, Task):

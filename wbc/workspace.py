@@ -152,6 +152,8 @@ class Workspace:
         self._lS = np.zeros(compiled.n_s)  # their bounds shifted by the optimal slacks
         self._uS = np.zeros(compiled.n_s)
         self._solved: list[_BlockState] = []  # blocks a backend solved in the last tick
+        o = compiled.x_above_offset  # Stack.x_above(): the cascade's x, written per level
+        self._x_above = None if o is None else self.p[o:o + n]
         self._blocks = [_BlockState(b, n, self.p, self._E,
                                     make_backend(backend, profile, **options))
                         for b in compiled.blocks]
@@ -232,6 +234,9 @@ class Workspace:
         x = None  # the decision vector after the last level solved
         status, message = Status.SOLVED, ""
         self._solved = solved = []
+        x_above = self._x_above
+        if x_above is not None:
+            x_above[:] = 0.0
         for state in self._blocks:
             block = state.block
             t0 = clock()
@@ -293,6 +298,8 @@ class Workspace:
                 # Exactly within the bounds: solvers meet them only to their tolerance (daqp
                 # ~1e-11, osqp ~1e-5), and commands and the rows frozen at x must not leave them.
                 x = level_x = _clip(z[:n], state.lb_x, state.ub_x)
+                if x_above is not None:
+                    x_above[:] = x
                 if block.m_soft:
                     self._freeze_soft_rows(state, z[n:])
             levels.append(LevelResult(block.label, result.status, level_x, rank,
@@ -338,7 +345,9 @@ class Workspace:
         uA[:rank] = rhs
         if self.compiled.freeze_tol:
             self._widen_frozen_rows(state, rank, self.compiled.freeze_tol)
-        if rank + n_fixed == block.n_z:  # x itself meets every row and constraint kept
+        if rank + n_fixed == block.n_z and np.array_equal(x[fixed], state.lb_x[fixed]):
+            # x itself meets every row kept and the variables this level fixes (a level-local
+            # pin may fix one that x moved)
             return -rank
         return rank
 
