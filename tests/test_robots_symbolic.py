@@ -74,15 +74,6 @@ def test_symbolic_frame_equals_the_numeric_getters(robot):
                                    atol=1e-10)
 
 
-def test_every_frame_has_symbolic_kinematics(robot):
-    # URDF frame names need not be CasADi identifiers (omni4_arm6: "base_link-base_fixed_joint")
-    q = configurations(robot, np.random.default_rng(SEED + 1), 2)[1]
-    for frame in robot.frame_names:
-        pose, J = evaluate(robot.symbolic_frame(frame), q)
-        np.testing.assert_allclose(pose, robot.frame_pose(q, frame), rtol=0, atol=1e-10)
-        np.testing.assert_allclose(J, robot.frame_jacobian(q, frame), rtol=0, atol=1e-10)
-
-
 def test_symbolic_jacobian_is_the_derivative_of_the_symbolic_pose(robot):
     """``J v`` = world twist of the frame (origin velocity, angular velocity) along ``q̇(v)``,
     by central differences of the symbolic pose."""
@@ -101,16 +92,6 @@ def test_symbolic_jacobian_is_the_derivative_of_the_symbolic_pose(robot):
         # the base columns really are the robot's coordinates, not world pose rates
         if robot.nv_base == 3 and abs(math.sin(q[2])) > 0.1:
             assert not np.allclose(J[:, :3] @ v[:3], J[:, :3] @ qdot[:3], atol=1e-3)
-
-
-def test_unknown_frame_raises_as_the_numeric_getters_do(robot):
-    q = robot.neutral()
-    for bad in ("no_such_frame", len(robot.model.frames) + 5):
-        with pytest.raises(Exception) as numeric:
-            robot.frame_pose(q, bad)
-        assert numeric.type is wbc.UnknownNameError
-        with pytest.raises(numeric.type):
-            robot.symbolic_frame(bad)
 
 
 # ------------------------------------------------------------------------ controller
