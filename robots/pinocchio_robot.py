@@ -188,8 +188,8 @@ class PinocchioRobot:
         return [name for name in self._frame_ids if name != "universe"]
 
     def has_frame(self, frame: str) -> bool:
-        """Whether ``frame`` names a frame of the robot."""
-        return frame in self._frame_ids
+        """Whether ``frame`` is one of :attr:`frame_names`."""
+        return frame != "universe" and frame in self._frame_ids
 
     @property
     def joint_names(self) -> list[str]:

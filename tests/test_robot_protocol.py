@@ -98,6 +98,8 @@ def test_satisfies_the_protocol(robot):
     assert isinstance(robot, Robot) and isinstance(robot, SymbolicRobot)
     assert isinstance(robot.quantities, QuantityRegistry)
     assert "ee" in robot.frame_names and robot.has_frame("ee") and not robot.has_frame("nope")
+    assert all(robot.has_frame(frame) for frame in robot.frame_names)
+    assert "universe" not in robot.frame_names and not robot.has_frame("universe")
     assert not isinstance(object(), Robot)
 
 
