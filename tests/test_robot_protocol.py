@@ -380,3 +380,46 @@ def test_an_unsupported_joint_in_a_mobile_robots_arm_is_an_error_at_load_time():
     model = odd_model(pin.JointModelHZ(0.1))  # helical: 1-DoF, so the arm accepts it
     with pytest.raises(wbc.WbcError, match=r"odd \(JointModelHZ"):
         wbc.robots.MobileManipulator(wbc.robots.mecanum_base(), model, ee_frame="tip")
+
+
+# ------------------------------------------------------------------------ in a controller
+class CentreOfMassTask(wbc.Task):
+    """``J_com v = gain (target − com)`` plus a small step along the manipulability gradient
+    of the arm joints: model quantities of every kind (symbolic forms and numeric only)."""
+
+    name = "com"
+
+    def __init__(self, n_arm: int) -> None:
+        self.n_arm = n_arm
+
+    def terms(self, stack):
+        v, n_arm = stack.variables["v"], self.n_arm
+        com, J_com = stack.quantity("com", (3, 1)), stack.quantity("J_com", (3, v.shape[0]))
+        gradient = stack.quantity("manipulability_gradient[ee]", (n_arm, 1))
+        target = stack.parameter("com.target", (3, 1))
+        return [wbc.Cost(J_com @ v - 0.5 * (target - com), name="com"),
+                wbc.Cost(v[v.shape[0] - n_arm:] - gradient, weight=1e-3, name="manipulability")]
+
+
+@pytest.mark.parametrize("name", ["tiago_panda", "panda"])
+def test_a_controller_plans_from_the_registry_numeric_and_compiled_alike(name):
+    robot = _load(name)
+    twin = robot.clone()
+
+    def stack():
+        s = wbc.Stack(wbc.Variables(v=robot.nv), damping=1e-3)
+        return s.add(CentreOfMassTask(robot.n_arm))
+
+    numeric = wbc.Controller(robot, stack(), backend="daqp", dt=0.01, kinematics="numeric")
+    compiled = wbc.Controller(twin, stack(), backend="daqp", dt=0.01, kinematics="compiled")
+    assert {"com", "J_com"} <= set(numeric.model_parameters)
+    assert not {"com", "J_com"} & set(compiled.model_parameters)  # inlined
+    assert "manipulability_gradient[ee]" in compiled.model_parameters  # numeric only
+    q = states(robot, np.random.default_rng(SEED + 12), 1)[0][0]
+    target = robot.com(q)[:, None] + [[0.05], [-0.02], [0.03]]
+    for _ in range(5):
+        v = numeric.step(q, **{"com.target": target})
+        assert numeric.last_solution.ok
+        np.testing.assert_allclose(compiled.step(q, **{"com.target": target}), v, rtol=0,
+                                   atol=1e-9)
+        q = robot.integrate(q, v, 0.01)
