@@ -24,6 +24,21 @@ from .terms import Cost, Equality, Inequality, VariableBounds, as_sx_column
 from .variables import Variables
 
 LEVEL, SCALING_LP, MIN_NORM = "level", "scaling_lp", "min_norm"
+PINNED = "zero mobility"  # the name of the hard rows and bounds that pin a direction
+
+
+@dataclass(frozen=True)
+class HardNames:
+    """Where a level's hard rows and bounds come from.
+
+    Attributes:
+        rows: the constraint name of each hard row (``"zero mobility"`` for a pinned direction).
+        bounds: per variable, the names of the constraints bounding it (several when bounds
+            overlap; the tightest one holds).
+    """
+
+    rows: tuple[str, ...]
+    bounds: tuple[tuple[str, ...], ...]
 
 
 @dataclass(frozen=True)
@@ -46,6 +61,8 @@ class QPBlock:
         n_frozen_cost: rows of ``E`` frozen by earlier levels (before compression).
         m_frozen_eq: room for the compressed frozen rows, ``min(n_frozen_cost, n)``.
         scale_index: index in ``p`` of this level's scale ``s`` (scaling levels only).
+        hard_names: which hard constraint each hard row and each variable's bounds come from
+            (for naming the constraints of an infeasible level, see :mod:`wbc.infeasibility`).
     """
 
     kind: str
@@ -63,6 +80,7 @@ class QPBlock:
     n_frozen_cost: int
     m_frozen_eq: int
     scale_index: int | None
+    hard_names: HardNames | None = None
 
     @property
     def m_top(self) -> int:
@@ -165,7 +183,7 @@ def compile_stack(stack) -> CompiledStack:
     blocks: list[QPBlock] = []
     n_e = n_s = 0
     for k in sorted(stack.levels):
-        C_h, l_h, u_h, lb, ub = _hard_constraints(stack, x, n, k)
+        C_h, l_h, u_h, lb, ub, hard_names = _hard_constraints(stack, x, n, k)
         W = _metric(stack, k)
         entries = stack.levels[k]
         names = tuple(dict.fromkeys(e.task_name for e in entries))
@@ -174,7 +192,7 @@ def compile_stack(stack) -> CompiledStack:
         r0 = ca.vertcat(*[c[1] for c in costs]) if costs else ca.SX(0, 1)
         t = ca.vertcat(*[c[2] for c in costs]) if costs else ca.SX(0, 1)
         common = dict(priority=k, task_names=names, n_frozen_soft=n_s, n_frozen_cost=n_e,
-                      m_frozen_eq=min(n_e, n))
+                      m_frozen_eq=min(n_e, n), hard_names=hard_names)
         if k in scale_syms:
             # LP over z = [x; s]: maximise s with A x + r0 = s t exactly.
             A_lp = ca.horzcat(A_c, -t)
@@ -206,14 +224,14 @@ def compile_stack(stack) -> CompiledStack:
         n_s += m_s
 
     if stack.min_norm:
-        C_h, l_h, u_h, lb, ub = _hard_constraints(stack, x, n, None)
+        C_h, l_h, u_h, lb, ub, hard_names = _hard_constraints(stack, x, n, None)
         W = _metric(stack, None)
         fn = _block_function("min_norm", p_sym, W, ca.SX.zeros(n), C_h, l_h, u_h, lb, ub,
                              ca.SX(n, 0))
         blocks.append(QPBlock(MIN_NORM, None, (), fn, n_z=n, m_hard=C_h.shape[0], m_soft=0,
                               m_task=0, m_cost=0, e_offset=n_e, s_offset=n_s,
                               n_frozen_soft=n_s, n_frozen_cost=n_e, m_frozen_eq=min(n_e, n),
-                              scale_index=None))
+                              scale_index=None, hard_names=hard_names))
     return CompiledStack(variables, layout, defaults, tuple(blocks), n_e, n_s, stack.rank_tol,
                          stack.freeze_tol, frozenset(P.name for P in params if P.quantity),
                          x_above_offset)
@@ -265,8 +283,10 @@ def _level_terms(entries, x):
 def _hard_constraints(stack, x, n, priority: int | None):
     """Rows ``l_h <= C_h x <= u_h`` and bounds ``lb <= x <= ub`` of level ``priority``
     (``None``: the min-norm level): constraints of every level, those local to this level, and
-    the mobility's pins where it holds."""
+    the mobility's pins where it holds; and the :class:`HardNames` of those rows and bounds."""
     rows, lows, ups = [], [], []
+    row_names: list[str] = []
+    bound_names: list[list[str]] = [[] for _ in range(n)]
     lb, ub = ca.SX(ca.DM.ones(n) * -np.inf), ca.SX(ca.DM.ones(n) * np.inf)
     for e in stack.constraints:
         if not e.holds_at(priority):
@@ -279,6 +299,8 @@ def _hard_constraints(stack, x, n, priority: int | None):
             up = _independent(term.upper, x, size, f"upper bound of {what}", True)
             lb[sl] = ca.fmax(lb[sl], lo)
             ub[sl] = ca.fmin(ub[sl], up)
+            for names in bound_names[sl]:
+                names.append(e.task_name)
             continue
         aff = _Affine(term.expr, x, None, what)
         if isinstance(term, Equality):
@@ -290,24 +312,30 @@ def _hard_constraints(stack, x, n, priority: int | None):
         rows.append(aff.C)
         lows.append(lo)
         ups.append(up)
+        row_names += [e.task_name] * aff.rows
     pins = stack.mobility_holds_at(priority)
     if pins and stack.mobility_diagonal is not None:
         free = stack.mobility_diagonal > ZERO_MOBILITY
         lb = ca.fmax(lb, ca.if_else(free, -np.inf, 0.0))
         ub = ca.fmin(ub, ca.if_else(free, np.inf, 0.0))
+        for names in bound_names:
+            names.append(PINNED)
     if pins and stack.pinned is not None:
         for row in stack.pinned:  # zero-mobility directions: bounds if axis-aligned, else rows
             axis = np.flatnonzero(np.abs(row) > 1e-12)
             if axis.size == 1:
                 lb[int(axis[0])] = ca.fmax(lb[int(axis[0])], 0)
                 ub[int(axis[0])] = ca.fmin(ub[int(axis[0])], 0)
+                bound_names[int(axis[0])].append(PINNED)
             else:
                 rows.append(ca.SX(ca.DM(row.reshape(1, -1))))
                 lows.append(ca.SX(0))
                 ups.append(ca.SX(0))
+                row_names.append(PINNED)
+    names = HardNames(tuple(row_names), tuple(tuple(dict.fromkeys(b)) for b in bound_names))
     if rows:
-        return ca.vertcat(*rows), ca.vertcat(*lows), ca.vertcat(*ups), lb, ub
-    return ca.SX(0, n), ca.SX(0, 1), ca.SX(0, 1), lb, ub
+        return ca.vertcat(*rows), ca.vertcat(*lows), ca.vertcat(*ups), lb, ub, names
+    return ca.SX(0, n), ca.SX(0, 1), ca.SX(0, 1), lb, ub, names
 
 
 def _block_function(name, p_sym, H, g, A_top, l_top, u_top, lb, ub, E) -> ca.Function:

@@ -44,6 +44,9 @@ class LevelResult:
         frozen_band: relative half-width of the band the frozen rows were kept in: 0 for exact
             equalities, the stack's ``freeze_tol``, or the workspace's retry band when the
             exact solve failed (see :class:`~wbc.Stack`).
+        conflict: when the backend found this QP infeasible, the names of the hard
+            constraints that cannot hold together (an irreducible set, see
+            :mod:`wbc.infeasibility`); empty otherwise.
     """
 
     label: str
@@ -53,6 +56,7 @@ class LevelResult:
     iterations: int = -1
     message: str = ""
     frozen_band: float = 0.0
+    conflict: tuple[str, ...] = ()
 
 
 @dataclass(slots=True)
@@ -75,6 +79,10 @@ class Solution:
             or when the first level failed.
         fallback: set by :class:`~wbc.Controller`: ``None`` when the QP was solved, else what
             produced the command (``"partial"`` or the fallback policy).
+        conflict: when a level was found infeasible, the names of the hard constraints that
+            cannot hold together there (drop any one and the rest can; ``"the levels above"``
+            when the optima of higher priorities take part); empty otherwise. ``message``
+            details which rows and bounds.
     """
 
     x: np.ndarray
@@ -86,6 +94,7 @@ class Solution:
     message: str = ""
     partial: bool = False
     fallback: str | None = None
+    conflict: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:

@@ -24,6 +24,7 @@ from scipy.linalg import get_lapack_funcs
 from .checks import check_bounds_order, checked_array
 from .compiler import SCALING_LP, CompiledStack, QPBlock
 from .errors import UnknownNameError, WbcError
+from .infeasibility import level_conflict
 from .qp import Backend, QPResult, Status
 from .solution import LevelResult, Solution, Timings
 
@@ -281,10 +282,13 @@ class Workspace:
             if result.status is not Status.SOLVED:
                 state.warm = None
                 status = result.status
+                conflict, details = (level_conflict(block, *state.qp[2:], self.compiled.variables)
+                                     if status is Status.INFEASIBLE else ((), ""))
                 message = f"{block.label}: {result.status.value}" + (
-                    f" ({result.message})" if result.message else "") + self._diagnose(state)
+                    f" ({result.message})" if result.message else "") + self._diagnose(state) + (
+                    f"; {details}" if details else "")
                 levels.append(LevelResult(block.label, result.status, np.zeros(n), rank,
-                                          result.iterations, result.message, band))
+                                          result.iterations, result.message, band, conflict))
                 break
             z = result.x
             if self.warm_start:
@@ -307,7 +311,7 @@ class Workspace:
         partial = x is not None and status is not Status.SOLVED
         return Solution(np.zeros(n) if x is None else x, status, levels,
                         self.compiled.variables, scales, Timings(0.0, assembly, solving), message,
-                        partial)
+                        partial, conflict=levels[-1].conflict if levels else ())
 
     def _append_frozen_rows(self, state: _BlockState, x: np.ndarray) -> int:
         """Write earlier levels' frozen rows below the block's own rows; return the rank of the
