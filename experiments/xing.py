@@ -95,17 +95,17 @@ NO_TERTIARY = replace(POSITION, gamma1=0.0, gamma2=0.0)
 
 
 # ---------------------------------------------------------------------------- the task
-def cartesian_command(pose, J, drift, v, target, target_velocity, target_acceleration,
-                      setup: Setup):
+def cartesian_command(pose, J, drift, v, target, target_velocity, target_acceleration, kd,
+                      kp, rows: int):
     """``(J_r, drift_r, ẍ_cmd)`` as SX: the task's rows of the frame Jacobian and drift (world
     axes) and the commanded acceleration ``ẍ_d + K_d (ẋ_d − J v) + K_p e`` (Appendix C), with
-    ``e = [p_d − p; log3(R_d Rᵀ)]`` (orientation error in world axes, for ``r = 6``)."""
-    r = setup.rows
+    ``e = [p_d − p; log3(R_d Rᵀ)]`` (orientation error in world axes, for ``rows = 6``);
+    ``kd``, ``kp`` (rows,) the diagonal gains."""
+    r = rows
     error = target[:3, 3] - pose[:3, 3]
     if r == 6:
         error = ca.vertcat(error, so3_log(target[:3, :3] @ pose[:3, :3].T))
     J_r, drift_r = J[:r, :], drift[:r]
-    kd, kp = ca.DM(setup.kd), ca.DM(setup.kp)
     command = (target_acceleration[:r] + kd * (target_velocity[:r] - J_r @ v) + kp * error)
     return J_r, drift_r, command
 
@@ -135,7 +135,9 @@ def add_amp_levels(stack: wbc.Stack, J, drift, xdd, n_base: int, transition, bas
 
 def amp_stack(robot, setup: Setup = POSITION) -> wbc.Stack:
     """The AMP cascade for ``robot`` (references ``"target"`` (4, 4) world pose,
-    ``"target_velocity"`` (6,), ``"target_acceleration"`` (6,), rows ``[linear; angular]``)."""
+    ``"target_velocity"`` (6,), ``"target_acceleration"`` (6,), rows ``[linear; angular]``;
+    parameters ``"kd"``, ``"kp"`` (r,), ``"sigma_thr"``, ``"manipulability.gamma1"``,
+    ``"manipulability.gamma2"`` default to ``setup``'s)."""
     nq, nv = int(robot.nq), int(robot.nv)
     stack = wbc.Stack(wbc.Variables(qdd=nv), min_norm=False)
     stack.constrain(JointAccelerationLimit(robot, setup.dt, setup.bounds, name="limits"))
@@ -146,11 +148,16 @@ def amp_stack(robot, setup: Setup = POSITION) -> wbc.Stack:
     target = stack.parameter("target", (4, 4), np.eye(4))
     target_velocity = stack.parameter("target_velocity", 6, np.zeros(6))
     target_acceleration = stack.parameter("target_acceleration", 6, np.zeros(6))
+    # the setup's numbers are parameters (defaults), so every setup of one task size shares
+    # one compiled (and JIT-built) stack
+    kd = stack.parameter("kd", setup.rows, setup.kd)
+    kp = stack.parameter("kp", setup.rows, setup.kp)
+    sigma_thr = stack.parameter("sigma_thr", 1, setup.sigma_thr)
     J_r, drift_r, xdd = cartesian_command(pose, J, drift, v, target, target_velocity,
-                                          target_acceleration, setup)
+                                          target_acceleration, kd, kp, setup.rows)
     q_sym, J_m = arm_jacobian(robot)
     sigma = ca.substitute(smallest_singular_value(J_m), q_sym, q)
-    base_free = ca.if_else(sigma < setup.sigma_thr, 1.0, 0.0)
+    base_free = ca.if_else(sigma < sigma_thr, 1.0, 0.0)
     tertiary = ManipulabilityTask(robot, gamma1=setup.gamma1, gamma2=setup.gamma2,
                                   name="manipulability")
     n_base = _base_slice(robot).stop
@@ -159,9 +166,10 @@ def amp_stack(robot, setup: Setup = POSITION) -> wbc.Stack:
 
 
 def amp_controller(robot, setup: Setup = POSITION, backend: str = "daqp",
-                   jit: bool = True) -> wbc.Controller:
-    """AMP as a QP in a :class:`wbc.Controller` (compiled kinematics, JIT by default)."""
-    return wbc.Controller(robot, amp_stack(robot, setup), backend, dt=setup.dt,
+                   profile: str = "default", jit: bool = True) -> wbc.Controller:
+    """AMP as a QP in a :class:`wbc.Controller` (compiled kinematics, JIT by default; a
+    failed solve decelerates within the bounds)."""
+    return wbc.Controller(robot, amp_stack(robot, setup), backend, profile, dt=setup.dt,
                           fallback="decelerate", jit=jit)
 
 
@@ -190,32 +198,46 @@ class ClosedFormPlanner:
         q, v = ca.SX.sym("q", self.nq), ca.SX.sym("v", self.nv)
         target = ca.SX.sym("target", 4, 4)
         target_velocity, target_acceleration = ca.SX.sym("tv", 6), ca.SX.sym("ta", 6)
+        kd, kp = ca.SX.sym("kd", setup.rows), ca.SX.sym("kp", setup.rows)
         pose = registry.get("pose[ee]").symbolic()(q)
         J = registry.get("J[ee]").symbolic()(q)
         drift = registry.get("Jdot_v[ee]").symbolic()(q, v)
         J_r, drift_r, xdd = cartesian_command(pose, J, drift, v, target, target_velocity,
-                                              target_acceleration, setup)
-        J_m, dJ, ddJ = arm_jacobian_derivatives(robot)(q)
+                                              target_acceleration, kd, kp, setup.rows)
+        outputs = [ca.densify(o) for o in (J_r, drift_r, xdd,
+                                           *arm_jacobian_derivatives(robot)(q))]
+        # the gains are inputs, so that every setup of one task size shares one C library
         function = ca.Function("xing_model", [q, v, target, target_velocity,
-                                              target_acceleration],
-                               [J_r, drift_r, xdd, J_m, dJ, ddJ])
+                                              target_acceleration, kd, kp], outputs)
         try:
-            self.model = compiled_c(function)
+            function = compiled_c(function)
         except RuntimeError:  # no C compiler: CasADi's virtual machine, same values
-            self.model = function
+            pass
+        # evaluated through a buffer into preallocated arrays (no DM conversions per tick)
+        self._inputs = [np.zeros(function.nnz_in(i)) for i in range(function.n_in())]
+        self._outputs = [np.zeros(function.size_out(i), order="F")
+                         for i in range(function.n_out())]
+        self._buffer, self._evaluate = function.buffer()
+        for i, array in enumerate(self._inputs):
+            self._buffer.set_arg(i, memoryview(array))
+        for i, array in enumerate(self._outputs):
+            self._buffer.set_res(i, memoryview(array.reshape(-1, order="F")))
         lim = robot.limits
         self.q_min = np.concatenate([np.full(self.n_base, -np.inf), lim.q_lower[-self.n_arm:]])
         self.q_max = np.concatenate([np.full(self.n_base, np.inf), lim.q_upper[-self.n_arm:]])
         self.last_info: ref.AMPInfo | None = None
 
     def terms(self, q, v, target, target_velocity, target_acceleration):
-        """``(J_r, drift_r, ẍ_cmd, q̈_sa, σ_min, (lower, upper))`` at a state, numerically."""
-        m, r = self.n_arm, self.setup.rows
-        out = self.model(q, v, target, target_velocity, target_acceleration)
-        J, drift, xdd = (np.array(o) for o in out[:3])
-        J_m = np.array(out[3])
-        dJ = np.array(out[4]).reshape(m, 3, m).transpose(2, 1, 0)
-        ddJ = np.array(out[5]).reshape(m, m, 3, m).transpose(3, 0, 2, 1)
+        """``(J_r, drift_r, ẍ_cmd, q̈_sa, σ_min)`` at a state, numerically."""
+        m = self.n_arm
+        for array, value in zip(self._inputs, (q, v, np.asarray(target).T, target_velocity,
+                                               target_acceleration, self.setup.kd,
+                                               self.setup.kp), strict=True):
+            array[:] = np.ravel(value)  # column-major: the transpose's rows
+        self._evaluate()
+        J, drift, xdd, J_m, dJ, ddJ = self._outputs
+        dJ = dJ.reshape(m, 3, m).transpose(2, 1, 0)
+        ddJ = ddJ.reshape(m, m, 3, m).transpose(3, 0, 2, 1)
         v_arm = v[self.n_base:]
         gradient = ref.manipulability_gradient(J_m, dJ)
         hessian = ref.manipulability_hessian(J_m, dJ, ddJ)
@@ -223,19 +245,23 @@ class ClosedFormPlanner:
         qdd_sa[self.n_base:] = ref.manipulability_acceleration(
             gradient, hessian @ v_arm, v_arm, self.setup.gamma1, self.setup.gamma2)
         sigma = float(np.linalg.svd(J_m, compute_uv=False)[-1])
-        positions = np.concatenate([np.zeros(self.n_base), q[-m:]])
+        return J.copy(), drift[:, 0].copy(), xdd[:, 0].copy(), qdd_sa, sigma
+
+    def bounds(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """The joint acceleration bounds (eqs. 6–8, or the viable ones) at a state."""
+        positions = np.concatenate([np.zeros(self.n_base), q[-self.n_arm:]])
         lim = self.robot.limits
-        bounds = joint_acceleration_bounds(positions, v, self.q_min, self.q_max, lim.v_lower,
-                                           lim.v_upper, lim.a_lower, lim.a_upper,
-                                           self.setup.dt, self.setup.bounds)
-        return J.reshape(r, self.nv), drift.reshape(r), xdd.reshape(r), qdd_sa, sigma, bounds
+        return joint_acceleration_bounds(positions, v, self.q_min, self.q_max, lim.v_lower,
+                                         lim.v_upper, lim.a_lower, lim.a_upper, self.setup.dt,
+                                         self.setup.bounds)
 
     def step(self, q, v, target, target_velocity, target_acceleration) -> np.ndarray:
         q, v = np.asarray(q, float), np.asarray(v, float)
-        J, drift, xdd, qdd_sa, sigma, (lower, upper) = self.terms(
-            q, v, target, target_velocity, target_acceleration)
+        J, drift, xdd, qdd_sa, sigma = self.terms(q, v, target, target_velocity,
+                                                  target_acceleration)
         if self.method == "traditional":
             return ref.traditional(J, xdd, drift, qdd_sa)
+        lower, upper = self.bounds(q, v)
         lim = self.robot.limits
         base = slice(0, self.n_base)
         transition = ref.base_transition(v[base], lim.a_lower[base], lim.a_upper[base],
@@ -542,7 +568,7 @@ def bounds_loops(n: int = 10_000, ticks: int = 300, seed: int = 0) -> dict:
 def equivalence(robot, states: int, seed: int = 0, backend: str = "daqp") -> dict:
     """QP vs closed form at random states of the robot (one tick each)."""
     rng = np.random.default_rng(seed)
-    qp = amp_controller(robot, POSITION, backend)
+    qp = amp_controller(robot, POSITION, backend, "tight")
     closed = ClosedFormPlanner(robot, POSITION, "amp")
     lim = robot.limits
     equal = differ = 0
@@ -554,19 +580,20 @@ def equivalence(robot, states: int, seed: int = 0, backend: str = "daqp") -> dic
         q = q_home.copy()
         q[3:] += rng.uniform(-0.6, 0.6, robot.n_arm)
         q[3:] = np.clip(q[3:], lim.q_lower[3:] + 0.3, lim.q_upper[3:] - 0.3)
-        v = rng.uniform(0.3 * lim.v_lower, 0.3 * lim.v_upper)
+        v = rng.uniform(0.1 * lim.v_lower, 0.1 * lim.v_upper)
         v[:3] *= rng.integers(0, 2)  # half of the states with the base at rest
         pose = robot.frame_pose(q, "ee")
         target = pose.copy()
-        target[:3, 3] += rng.normal(0.0, 0.05, 3) * rng.choice([0.1, 1.0, 5.0])
-        refs = {"target": target, "target_velocity": rng.normal(0, 0.1, 6),
-                "target_acceleration": rng.normal(0, 0.3, 6)}
+        size = rng.choice([0.1, 1.0, 10.0])  # small, moderate and saturating demands
+        target[:3, 3] += rng.normal(0.0, 0.01 * size, 3)
+        refs = {"target": target, "target_velocity": rng.normal(0, 0.02 * size, 6),
+                "target_acceleration": rng.normal(0, 0.1 * size, 6)}
         x_qp = qp.step(q, v, **refs)
         x_cf = closed.step(q, v, **refs)
         info = closed.last_info
         s_qp = qp.last_solution.scale
         scale_ok &= s_qp is not None and s_qp >= info.alpha - 1e-6
-        J, drift, xdd, qdd_sa, sigma, (lower, upper) = closed.terms(q, v, **refs)
+        lower, upper = closed.bounds(q, v)
         inside = np.all(x_cf > lower + 1e-9) and np.all(x_cf < upper - 1e-9)
         if info.reason == "arm" and info.free[3:].all() and info.beta == 1.0 and inside:
             equal += 1
@@ -587,13 +614,14 @@ def _figures(runs: dict, out_dir: Path) -> list[str]:
 
     names = []
     for key in ("circle_r010", "circle_r025", "pose"):
-        fig, axes = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+        fig, axes = plt.subplots(2, 1, figsize=(7, 6))
         for method, s in runs[key].items():
             axes[0].plot(s["t"], 100 * np.asarray(s["ee_error"]), label=method)
             speed = np.linalg.norm(np.asarray(s["base_velocity_command"])[:, :2], axis=1)
             axes[1].plot(s["t"], 100 * speed, label=method)
         axes[0].set_ylabel("end-effector position error [cm]")
         axes[1].set_ylabel("commanded base speed [cm/s]")
+        axes[0].set_xlabel("time [s]")
         axes[1].set_xlabel("time [s]")
         axes[0].set_title(key)
         axes[0].legend()

@@ -106,8 +106,8 @@ def scaling_factor(demand, offset, lower, upper) -> float:
     """
     demand, offset = np.asarray(demand, float), np.asarray(offset, float)
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-    s_min, s_max = _scale_intervals(demand, offset, lower - 1e-12, upper + 1e-12)
-    if np.any(s_min > s_max) or np.any(s_min > 0):
+    s_min, s_max = _scale_intervals(demand, offset, lower, upper)
+    if np.any(s_min > 1e-12) or np.any(s_max < -1e-12):  # round-off on a bound is no violation
         return 0.0
     return float(np.clip(s_max.min(initial=np.inf), 0.0, 1.0))
 
@@ -252,6 +252,7 @@ def amp(J, xdd, drift, lower, upper, n_base: int, *, qdd_sa=None, transition=Non
         free = np.ones(n, dtype=bool)
         free[list(saturated)] = False
     tertiary = auxiliary_projector(J, free) @ qdd_sa
+    tertiary[~free] = 0.0  # exactly: P_A's rows of still joints are zero up to round-off
     beta = scaling_factor(tertiary, qdd, lower, upper)
     info = AMPInfo(float(alpha), beta, reason != "arm", reason, free)
     return qdd + beta * tertiary, info

@@ -93,7 +93,9 @@ class ManipulabilityTask(Task):
     Args:
         robot: the robot (``nq``, ``nv``, a symbolic ``"J[<frame>]"``).
         frame: the end-effector frame.
-        gamma1: ``γ1`` [1/s] (paper: 5); gamma2: ``γ2`` [1/s] (paper: 0.5).
+        gamma1: ``γ1`` [1/s] (paper: 5); gamma2: ``γ2`` [1/s] (paper: 0.5); they are the
+            defaults of the parameters ``"<name>.gamma1"``, ``"<name>.gamma2"`` (settable per
+            tick without recompiling).
         name: task name. joints: number of trailing arm joints.
         block: the acceleration block of the decision vector (``None``: all of it).
     """
@@ -112,12 +114,12 @@ class ManipulabilityTask(Task):
         self.joints = joints
         self.name, self.block = name, block
 
-    def target(self, q, v):
-        """``q̈_sa`` (nv,) as SX of the symbols ``q`` (nq,) and ``v`` (nv,)."""
+    def target(self, q, v, gamma1, gamma2):
+        """``q̈_sa`` (nv,) as SX of the symbols ``q`` (nq,), ``v`` (nv,) and the gains."""
         q_sym, J_m = arm_jacobian(self.robot, self.frame, self.joints)
         q_arm, qd_arm = q_sym[self.nq - self.n_arm:], v[self.nv - self.n_arm:]
         _, gradient, hessian_qd = manipulability_expressions(J_m, q_arm, qd_arm)
-        arm = self.gamma1 * hessian_qd + self.gamma2 * (self.gamma1 * gradient - qd_arm)
+        arm = gamma1 * hessian_qd + gamma2 * (gamma1 * gradient - qd_arm)
         arm = ca.substitute(arm, q_sym, q)
         return ca.vertcat(ca.SX.zeros(self.nv - self.n_arm), arm)
 
@@ -125,4 +127,6 @@ class ManipulabilityTask(Task):
         x = velocity_block(stack, self.block, self.nv, f"ManipulabilityTask {self.name!r}")
         q = stack.quantity("q", self.nq)
         v = stack.quantity("v", self.nv)
-        return [Cost(x, self.target(q, v), 1.0, self.name)]
+        gamma1 = stack.parameter(f"{self.name}.gamma1", 1, self.gamma1)
+        gamma2 = stack.parameter(f"{self.name}.gamma2", 1, self.gamma2)
+        return [Cost(x, self.target(q, v, gamma1, gamma2), 1.0, self.name)]
