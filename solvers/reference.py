@@ -677,3 +677,5 @@ def sns_acceleration(
 from .reference_xing import AMPInfo, amp, auxiliary_projector, base_transition, manipulability_acceleration, manipulability_gradient, manipulability_hessian, scaling_factor, traditional  # noqa: E402, E501, I001
 
 __all__ += ["AMPInfo", "amp", "auxiliary_projector", "base_transition", "manipulability_acceleration", "manipulability_gradient", "manipulability_hessian", "scaling_factor", "traditional"]  # noqa: E501
+from .reference_sorour import arm_compensation, sharing_mobility, task_sharing_factor, task_sharing_velocity  # noqa: E402, E501, I001
+__all__ += ["arm_compensation", "sharing_mobility", "task_sharing_factor", "task_sharing_velocity"]  # noqa: E501

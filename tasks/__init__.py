@@ -10,3 +10,7 @@ __all__ = ["Bounds", "ConfigurationLimit", "FrameTask", "LinearConstraint", "Lin
 from .joint_acceleration import JointAccelerationLimit, joint_acceleration_bounds  # noqa: E402
 
 __all__ += ["JointAccelerationLimit", "joint_acceleration_bounds"]
+from .rpy_pose import RpyPoseTask  # noqa: E402
+from .task_sharing import ArmCompensation, DexterousPosture, share_task, sharing_factor  # noqa: E402
+
+__all__ += ["ArmCompensation", "DexterousPosture", "RpyPoseTask", "share_task", "sharing_factor"]
