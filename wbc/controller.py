@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import warnings
 
 import casadi as ca
 import numpy as np
@@ -70,6 +71,7 @@ from .errors import (
     UnknownNameError,
     WbcError,
 )
+from .fused import FusedWorkspace, compiler_available, why_not_fused
 from .jit import jit_compiled
 from .qp import Status
 from .quantities import STATE_QUANTITIES, registry_of
@@ -129,7 +131,18 @@ class Controller:
         jit: evaluate the level functions as compiled C (needs a C compiler; each function is
             built once per machine, 0.1–0.5 s, and cached on disk, see :mod:`wbc.jit`;
             evaluation drops from ≈ 8 µs to ≈ 0.6 µs for a Panda pose + posture level).
-            Without a compiler: a warning and the CasADi virtual machine.
+            ``"auto"`` (default): when a C compiler is on the path (``$CC``, default ``cc``),
+            else the CasADi virtual machine. ``True`` without a compiler: a warning and the
+            virtual machine. Not used on the fused path (which compiles the whole tick).
+        fused: the whole tick as one generated C function (compiled kinematics, assembly and
+            the daqp solve, see :mod:`wbc.fused`). ``"auto"`` (default): when the backend is
+            ``"daqp"``, the cascade is a single QP and a C compiler is present — one
+            :class:`RuntimeWarning` if only the compiler is missing, then today's path;
+            ``True``: the same, but a stack that cannot be fused is a :class:`~wbc.WbcError`;
+            ``False``: today's path. ``self.fused`` says which path is used and
+            ``self.fused_reason`` why not. On the fused path, the returned command and
+            ``last_solution`` are buffers the next tick rewrites (no allocation per tick):
+            copy what you keep.
         **options: backend options overriding the profile.
 
     Attributes:
@@ -154,10 +167,13 @@ class Controller:
 
     def __init__(self, robot, stack: Stack, backend: BackendSpec = "daqp",
                  profile: str = "default", dt: float = 0.01, fallback: str = "hold",
-                 warm_start: bool = True, kinematics: str = "auto", jit: bool = False,
-                 **options) -> None:
+                 warm_start: bool = True, kinematics: str = "auto", jit: bool | str = "auto",
+                 fused: bool | str = "auto", **options) -> None:
         if fallback not in FALLBACKS:
             raise WbcError(f"unknown fallback {fallback!r}; use one of {list(FALLBACKS)}")
+        for name, value in (("jit", jit), ("fused", fused)):
+            if value not in (True, False, "auto"):
+                raise WbcError(f"{name} must be True, False or 'auto', got {value!r}")
         self.robot = robot
         self.stack = stack
         self.fallback = fallback
@@ -175,18 +191,52 @@ class Controller:
             except WbcError:  # no symbolic forms, or joints they do not cover: the getters
                 kinematics = "numeric"
         self.kinematics = kinematics
-        if jit:
-            self.compiled = jit_compiled(self.compiled)
-        self.workspace = Workspace(self.compiled, backend, profile, warm_start, **options)
+        self.workspace = self._fused_workspace(fused, backend, profile, warm_start, options)
+        self.fused = self.workspace is not None
+        if not self.fused:
+            if jit is True or (jit == "auto" and compiler_available()):
+                self.compiled = jit_compiled(self.compiled)
+            self.workspace = Workspace(self.compiled, backend, profile, warm_start, **options)
         self.last_solution: Solution | None = None
         self.last_command: np.ndarray | None = None
-        self._q = self._v = self._dt = None
+        self._q: np.ndarray | None = None  # views of "q", "v", "dt" in p (set by _plan)
+        self._v: np.ndarray | None = None
+        self._dt: np.ndarray | None = None
         self._needs_v = self._needs_drift = False
         self._fillers: list = []
         self.model_parameters: list[str] = []
         self._plan()
         self.dt = dt
-        self._references = {}  # keyword -> (parameter name, view, allow_inf), cached
+        # keyword -> (parameter name, view, allow_inf), cached
+        self._references: dict[str, tuple[str, np.ndarray, bool]] = {}
+
+    def _fused_workspace(self, fused, backend, profile, warm_start, options):
+        """A :class:`~wbc.fused.FusedWorkspace` if the fused path applies (see ``fused`` in the
+        class docstring), else ``None`` with ``self.fused_reason`` saying why."""
+        if fused is False:
+            self.fused_reason = "turned off (fused=False)"
+            return None
+        reason = (why_not_fused(self.compiled, options) if backend == "daqp" else
+                  f"the backend is {backend!r}; the fused tick solves with daqp")
+        if reason is None and not compiler_available():
+            reason = "no C compiler found ($CC, default cc)"
+            warnings.warn(f"wbc.Controller: {reason}; the tick runs on today's path (Python "
+                          "around a persistent daqp backend), several times slower",
+                          RuntimeWarning, stacklevel=3)
+        if reason is None:
+            try:
+                workspace = FusedWorkspace(self.compiled, profile, warm_start, **options)
+            except RuntimeError as err:  # the compiler failed
+                reason = f"C compilation failed: {err}"
+                warnings.warn(f"wbc.Controller: {reason}; the tick runs on today's path",
+                              RuntimeWarning, stacklevel=3)
+            else:
+                self.fused_reason = None
+                return workspace
+        if fused is True:
+            raise WbcError(f"fused=True, but the tick cannot be fused: {reason}")
+        self.fused_reason = reason
+        return None
 
     # ------------------------------------------------------------------ planning
     def _plan(self) -> None:
@@ -205,12 +255,12 @@ class Controller:
                 else:
                     self._dt = view
             else:
-                if name in compiled.quantities:
-                    quantity = registry.get(name)
-                else:  # a plain parameter the robot happens to offer (names before quantities)
-                    quantity = registry.resolve(name)
-                    if quantity is None:
-                        continue
+                # a declared quantity must be offered; a plain parameter the robot happens to
+                # offer is filled too (names before quantities)
+                quantity = (registry.get(name) if name in compiled.quantities else
+                            registry.resolve(name))
+                if quantity is None:
+                    continue
                 expected = quantity.shape
                 view = ws.view(name)
                 if quantity.needs_v:
@@ -388,7 +438,7 @@ def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
     params = dict(compiled.parameters)
     n_p = compiled.defaults.shape[0]
     needs_v = any(quantity.needs_v for quantity in replaced.values())
-    appended = []
+    appended: list[int] = []
     for name, size, needed in (("q", int(robot.nq), True), ("v", int(robot.nv), needs_v)):
         if needed and name not in params:
             params[name] = (n_p + sum(appended), (size, 1), False)
@@ -403,7 +453,9 @@ def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
     entries = [p[i] for i in range(n_p)]
     for name, quantity in replaced.items():
         offset, shape, _ = params.pop(name)
-        function = quantity.symbolic()
+        build = quantity.symbolic
+        assert build is not None  # replaced holds the quantities with a symbolic form only
+        function = build()
         inputs = [column("q"), column("v")] if quantity.needs_v else [column("q")]
         value = function(*inputs)
         if value.shape != shape:

@@ -51,7 +51,9 @@ def infeasible_subset(A: np.ndarray, lA: np.ndarray, uA: np.ndarray, lb: np.ndar
 
     A = np.asarray(A, dtype=float)
     n = A.shape[1]
-    G, h, labels = [], [], []
+    rows_g: list[np.ndarray] = []
+    rows_h: list[float] = []
+    labels: list[tuple[str, int, str]] = []
     for kind, rows, lower, upper in (("row", A, lA, uA), ("bound", np.eye(n), lb, ub)):
         norms = np.linalg.norm(rows, axis=1)
         for side, values, sign in ((UPPER, upper, 1.0), (LOWER, lower, -1.0)):
@@ -60,12 +62,12 @@ def infeasible_subset(A: np.ndarray, lA: np.ndarray, uA: np.ndarray, lb: np.ndar
                     if sign * values[i] < -tol:
                         return [Conflict(kind, int(i), side, 1.0)]
                     continue
-                G.append(sign * rows[i] / norms[i])
-                h.append(sign * values[i] / norms[i])
+                rows_g.append(sign * rows[i] / norms[i])
+                rows_h.append(sign * values[i] / norms[i])
                 labels.append((kind, int(i), side))
-    if not G:
+    if not rows_g:
         return []
-    G, h = np.array(G), np.array(h)
+    G, h = np.array(rows_g), np.array(rows_h)
     k = len(h)
     equalities = np.vstack([G.T, np.ones((1, k))])
     rhs = np.concatenate([np.zeros(n), [1.0]])
@@ -75,7 +77,7 @@ def infeasible_subset(A: np.ndarray, lA: np.ndarray, uA: np.ndarray, lb: np.ndar
     y = lp.x
     support = np.flatnonzero(y > 1e-9 * y.max())
     order = support[np.argsort(-y[support])]
-    return [Conflict(*labels[i], float(y[i])) for i in order]
+    return [Conflict(labels[i][0], labels[i][1], labels[i][2], float(y[i])) for i in order]
 
 
 ABOVE = "the levels above"  # the name of the frozen rows a lower level keeps

@@ -139,8 +139,10 @@ class QuantityRegistry:
             if argument not in valid:
                 raise UnknownNameError(f"quantity {name!r}: unknown {spec.argument} "
                                        f"{argument!r}; known: {sorted(valid)}")
-        symbolic = None if spec.symbolic is None else (lambda: spec.symbolic(argument))
-        return Quantity(name, tuple(spec.shape(argument)),
+        build = spec.symbolic
+        symbolic = None if build is None else (lambda: build(argument))
+        rows, cols = spec.shape(argument)
+        return Quantity(name, (rows, cols),
                         lambda out: spec.fill(argument, out), spec.needs_v, symbolic, spec.doc)
 
     def get(self, name: str) -> Quantity:

@@ -115,12 +115,13 @@ class Stack:
             variables = Variables(variables)
         self.variables = variables
         n = variables.n
-        per_level = damping if isinstance(damping, Mapping) else {}
-        for rho in [*per_level.values()] if per_level else [damping]:
+        per_level: Mapping[int, float] = damping if isinstance(damping, Mapping) else {}
+        default = 0.0 if isinstance(damping, Mapping) else float(damping)
+        for rho in [*per_level.values(), default]:
             if not np.isfinite(rho) or rho < 0:
                 raise InvalidValueError(f"damping must be a finite number >= 0, got {rho!r}")
         self._damping = {int(k): float(v) for k, v in per_level.items()}
-        self._default_damping = 0.0 if per_level else float(damping)
+        self._default_damping = default
         if metric is not None and mobility is not None:
             raise WbcError("give either metric or mobility, not both")
         self.metric, self.pinned = _metric_and_pins(n, metric, mobility)

@@ -32,9 +32,9 @@ BackendSpec = str | Callable[[], Backend]
 
 _ABS_RANK_TOL = 1e-12
 try:  # the ufunc behind np.clip: one call, where np.clip's Python wrappers cost 4x more
-    from numpy._core.umath import clip as _clip
+    from numpy._core.umath import clip as _clip  # type: ignore[attr-defined]
 except ImportError:  # numpy < 2
-    from numpy.core.umath import clip as _clip
+    from numpy.core.umath import clip as _clip  # type: ignore[no-redef]
 
 _GESDD, _GEQP3, _ORGQR = get_lapack_funcs(("gesdd", "geqp3", "orgqr"), dtype=np.float64)
 _RETRY_BAND = 1e-7  # relative half-width of the frozen rows when the exact solve failed
@@ -95,14 +95,15 @@ class _BlockState:
         if block.kind == SCALING_LP:
             self.lb[n], self.ub[n] = 0.0, 1.0
         self.buffer, self.evaluate = block.function.buffer()
-        self.buffer.set_arg(0, memoryview(p))
+        # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res)
+        self.buffer.set_arg(0, memoryview(p))  # type: ignore[call-arg, arg-type]
         top = block.m_top
         outputs = [self.H.reshape(-1), self.g, self.A[:top].reshape(-1),
                    self.lA[:top], self.uA[:top], self.lb[:n], self.ub[:n],
                    E[block.e_offset:block.e_offset + block.m_cost].reshape(-1)]
         for i, out in enumerate(outputs):
             if out.size:
-                self.buffer.set_res(i, memoryview(out))
+                self.buffer.set_res(i, memoryview(out))  # type: ignore[call-arg, arg-type]
         # Views of the rows the cascade appends each tick (fixed places, made once).
         soft = slice(top, top + block.n_frozen_soft)
         eq = slice(soft.stop, soft.stop + block.m_frozen_eq)
@@ -232,7 +233,7 @@ class Workspace:
         assembly = solving = 0.0
         levels: list[LevelResult] = []
         scales: dict[int, float] = {}
-        x = None  # the decision vector after the last level solved
+        x: np.ndarray | None = None  # the decision vector after the last level solved
         status, message = Status.SOLVED, ""
         self._solved = solved = []
         x_above = self._x_above
@@ -242,10 +243,13 @@ class Workspace:
             block = state.block
             t0 = clock()
             state.evaluate()
-            rank = self._append_frozen_rows(state, x) if state.has_frozen_rows else 0
+            # (x is set whenever a block has frozen rows: a solved level precedes it)
+            rank = (self._append_frozen_rows(state, x)  # type: ignore[arg-type]
+                    if state.has_frozen_rows else 0)
             if rank < 0:  # the levels above leave one point, x: nothing to solve
                 assembly += clock() - t0
-                levels.append(LevelResult(block.label, Status.SOLVED, x.copy(), -rank, 0))
+                levels.append(LevelResult(block.label, Status.SOLVED,
+                                          x.copy(), -rank, 0))  # type: ignore[union-attr]
                 continue
             consistent = block.kind != SCALING_LP or self._compress_task_rows(state)
             t1 = clock()
@@ -295,7 +299,7 @@ class Workspace:
                 state.warm = z
             if block.kind == SCALING_LP:
                 s = min(max(float(z[n]), 0.0), 1.0)
-                scales[block.priority] = s
+                scales[block.priority] = s  # type: ignore[index]  # a level's: not None
                 self.p[block.scale_index] = s
                 level_x = z[:n].copy()
             else:
@@ -371,9 +375,10 @@ class Workspace:
         rows = slice(block.m_hard, block.m_hard + block.m_task)
         M, rhs = state.A[rows], state.lA[rows]
         U, sv, Vt = _svd(M)
-        rank = int(np.count_nonzero(sv > max(_ABS_RANK_TOL, self.compiled.rank_tol * sv[0])))
+        rank = int(np.count_nonzero(sv > max(_ABS_RANK_TOL,
+                                             self.compiled.rank_tol * float(sv[0]))))
         c = U[:, :rank].T @ rhs
-        if np.linalg.norm(rhs - U[:, :rank] @ c) > 1e-9 * max(1.0, np.linalg.norm(rhs)):
+        if np.linalg.norm(rhs - U[:, :rank] @ c) > 1e-9 * max(1.0, float(np.linalg.norm(rhs))):
             return False
         c /= sv[:rank]  # the rows Vt = Σ⁻¹ Uᵀ M take the right-hand side Σ⁻¹ Uᵀ rhs
         M[:rank] = Vt[:rank]
