@@ -180,7 +180,7 @@ class ClosedFormPlanner:
     ``method="amp"``: :func:`wbc.solvers.reference.amp` with the appendix's manipulability
     derivatives; ``method="traditional"``: :func:`wbc.solvers.reference.traditional`. The
     model (task rows, drift, command, ``J_m`` and its derivatives) is one CasADi function of
-    ``(q, v, references)`` compiled to C once (:func:`wbc.jit.compiled_c`).
+    ``(q, v, references)``, compiled to C once (:func:`wbc.jit.compiled_c`) when ``jit``.
 
     Attributes:
         last_solution: always ``None`` (no QP); ``last_info``: the last :class:`AMPInfo`.
@@ -188,7 +188,8 @@ class ClosedFormPlanner:
 
     last_solution = None
 
-    def __init__(self, robot, setup: Setup = POSITION, method: str = "amp") -> None:
+    def __init__(self, robot, setup: Setup = POSITION, method: str = "amp",
+                 jit: bool = True) -> None:
         if method not in ("amp", "traditional"):
             raise InvalidValueError(f"method must be 'amp' or 'traditional', got {method!r}")
         self.robot, self.setup, self.method = robot, setup, method
@@ -209,10 +210,11 @@ class ClosedFormPlanner:
         # the gains are inputs, so that every setup of one task size shares one C library
         function = ca.Function("xing_model", [q, v, target, target_velocity,
                                               target_acceleration, kd, kp], outputs)
-        try:
-            function = compiled_c(function)
-        except RuntimeError:  # no C compiler: CasADi's virtual machine, same values
-            pass
+        if jit:
+            try:
+                function = compiled_c(function)
+            except RuntimeError:  # no C compiler: CasADi's virtual machine, same values
+                pass
         # evaluated through a buffer into preallocated arrays (no DM conversions per tick)
         self._inputs = [np.zeros(function.nnz_in(i)) for i in range(function.n_in())]
         self._outputs = [np.zeros(function.size_out(i), order="F")
@@ -565,11 +567,12 @@ def bounds_loops(n: int = 10_000, ticks: int = 300, seed: int = 0) -> dict:
     return out
 
 
-def equivalence(robot, states: int, seed: int = 0, backend: str = "daqp") -> dict:
-    """QP vs closed form at random states of the robot (one tick each)."""
+def equivalence(robot, states: int, seed: int = 0, backend: str = "daqp",
+                jit: bool = True) -> dict:
+    """QP (tight profile) vs closed form at random states of the robot (one tick each)."""
     rng = np.random.default_rng(seed)
-    qp = amp_controller(robot, POSITION, backend, "tight")
-    closed = ClosedFormPlanner(robot, POSITION, "amp")
+    qp = amp_controller(robot, POSITION, backend, "tight", jit)
+    closed = ClosedFormPlanner(robot, POSITION, "amp", jit)
     lim = robot.limits
     equal = differ = 0
     worst_equal = 0.0
@@ -648,24 +651,25 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     scenarios = {"circle_r010": (circle(x0, 0.10, rotation0), long, POSITION),
                  "circle_r025": (circle(x0, 0.25, rotation0), long, POSITION),
                  "pose": (swing(x0, rotation0), short, POSE)}
+    jit = not quick  # quick runs (tests) skip the C builds: same values, slower ticks
     runs: dict = {}
     failures: list[str] = []
     for key, (references, seconds, setup) in scenarios.items():
-        planners = {"traditional": ClosedFormPlanner(robot, setup, "traditional"),
-                    "amp_closed_form": ClosedFormPlanner(robot, setup, "amp"),
-                    "amp_qp": amp_controller(robot, setup, backend)}
+        planners = {"traditional": ClosedFormPlanner(robot, setup, "traditional", jit),
+                    "amp_closed_form": ClosedFormPlanner(robot, setup, "amp", jit),
+                    "amp_qp": amp_controller(robot, setup, backend, jit=jit)}
         runs[key] = {m: simulate(robot, p, references, seconds, setup)
                      for m, p in planners.items()}
     runs["singularity"] = {
-        label: simulate(robot, amp_controller(robot, setup, backend), circle(x0, 0.25,
-                        rotation0), short, setup)
+        label: simulate(robot, amp_controller(robot, setup, backend, jit=jit),
+                        circle(x0, 0.25, rotation0), short, setup)
         for label, setup in (("without", NO_AVOIDANCE), ("no_tertiary", NO_TERTIARY),
                              ("with", POSITION))}
     timing, split = {}, {}
     timing_seconds = 2.0 if quick else 10.0
     for name in available_backends():
         try:
-            s = simulate(robot, amp_controller(robot, POSITION, name),
+            s = simulate(robot, amp_controller(robot, POSITION, name, jit=jit),
                          circle(x0, 0.25, rotation0), timing_seconds, POSITION)
         except Exception as error:  # a backend that cannot run the cascade at all
             failures.append(f"timing on {name}: {type(error).__name__}: {error}")
@@ -674,7 +678,7 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
         timing[name]["failed_ticks"] = int(s["failures"])
         split[name] = {k: float(np.median(s[k])) for k in ("model_s", "assembly_s", "solve_s")}
     loops = bounds_loops(2_000 if quick else 10_000)
-    eq = equivalence(robot, 100 if quick else 1000)
+    eq = equivalence(robot, 100 if quick else 1000, jit=jit)
     claims = _claims(runs, timing, loops, eq)
     figures = _figures(runs, out_dir)
     for methods in runs.values():

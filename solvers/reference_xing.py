@@ -234,7 +234,10 @@ def amp(J, xdd, drift, lower, upper, n_base: int, *, qdd_sa=None, transition=Non
         arm = slice(n_base, n)
         q_arm, alpha, saturated, _ = _sns(J[:, arm], xdd, -drift - J[:, base] @ transition,
                                           lower[arm], upper[arm], None, None, None)
-        if q_arm is not None and alpha == 1.0:
+        # "rank(JS) < r": an arm that cannot span the task's directions fails however SNS
+        # ends (SNS itself only compares against the rank of the columns it was given)
+        spans = np.linalg.matrix_rank(J[:, arm]) == np.linalg.matrix_rank(J)
+        if spans and q_arm is not None and alpha == 1.0:
             qdd = np.concatenate([transition, np.clip(q_arm, lower[arm], upper[arm])])
             free = np.ones(n, dtype=bool)
             free[base] = False
