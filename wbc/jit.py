@@ -44,34 +44,39 @@ def _process_dir() -> Path:
     return Path(tempfile.mkdtemp(prefix="wbc-jit-"))
 
 
-def compiled_c(function: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS) -> ca.Function:
+def compiled_c(function: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS,
+               link: tuple[str, ...] = ()) -> ca.Function:
     """``function`` (same name, inputs and outputs) evaluated by compiled C from the cache,
-    building the library first if needed. Raises ``RuntimeError`` if the compiler fails."""
+    building the library first if needed. ``link``: extra compiler arguments placed after the
+    source, e.g. ``-I`` folders and static libraries the generated code calls (CasADi's daqp:
+    see :mod:`wbc.fused`); they are part of the cache key. Raises ``RuntimeError`` if the
+    compiler fails."""
     generator = ca.CodeGenerator(f"{function.name()}.c", {"with_header": False})
     generator.add(function)
     source = generator.dump()
     compiler = os.environ.get("CC", "cc")
-    key = hashlib.sha256("\0".join([source, compiler, *flags]).encode()).hexdigest()[:24]
+    key = hashlib.sha256("\0".join([source, compiler, *flags, *link]).encode()).hexdigest()[:24]
     name = f"{function.name()}_{key}.so"
     for folder in (cache_dir(), _process_dir()):
         library = folder / name
         try:
             if not library.exists():
-                _build(source, library, compiler, flags)
+                _build(source, library, compiler, (*flags, "-shared", "-fPIC"), link)
             return ca.external(function.name(), str(library))
         except OSError:  # not writable: next folder
             continue
     raise RuntimeError(f"no writable folder for JIT libraries (tried {cache_dir()})")
 
 
-def _build(source: str, library: Path, compiler: str, flags: tuple[str, ...]) -> None:
+def _build(source: str, library: Path, compiler: str, flags: tuple[str, ...],
+           link: tuple[str, ...]) -> None:
     library.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=library.parent) as tmp:
         c_file, built = Path(tmp) / "block.c", Path(tmp) / library.name
         c_file.write_text(source)
         try:
-            done = subprocess.run([compiler, *flags, "-shared", "-fPIC", "-o", str(built),
-                                   str(c_file)], capture_output=True, text=True)
+            done = subprocess.run([compiler, *flags, "-o", str(built), str(c_file), *link],
+                                  capture_output=True, text=True)
         except FileNotFoundError as err:
             raise RuntimeError(f"C compiler {compiler!r} not found") from err
         if done.returncode != 0:
