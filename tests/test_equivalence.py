@@ -32,9 +32,12 @@ SCALING_UNRELIABLE = {
     "osqp": "ADMM stalls on degenerate vertex LPs (max_iter / solved inaccurate)",
     "casadi:osqp": "ADMM stalls on degenerate vertex LPs (max_iter / solved inaccurate)",
     "proxqp": "ProxQP 0.8 reports primal infeasibility on some feasible vertex LPs",
-    "quadprog": "quadprog needs H > 0: the adapter's proximal iterations on the singular "
-                "level after a scaling LP can stall at a degenerate vertex (max_iter)",
 }
+# quadprog needs H > 0: the adapter's proximal iterations on the singular level after a scaling
+# LP can stall at a degenerate vertex. Rare (measured: 1 in 1000 random velocity instances, 3 in
+# 1000 acceleration ones; none among the derandomised examples here, where an xfail marker only
+# XPASSed), so instead of an expected failure the tests accept exactly that status from it.
+SCALING_STALLS = {"quadprog": wbc.Status.MAX_ITER}
 
 
 def scaling_backends():
@@ -52,10 +55,13 @@ def instances(draw, min_n: int = 1):
     return m, n, rank, rng
 
 
-def solve(stack: wbc.Stack, backend: str) -> tuple[wbc.Solution, wbc.Workspace]:
+def solve(stack: wbc.Stack, backend: str,
+          stall: wbc.Status | None = None) -> tuple[wbc.Solution, wbc.Workspace]:
+    """Solve on ``backend`` with the tight profile; the solution must be solved, or have the
+    documented ``stall`` status (then ``sol.ok`` is false and the caller stops)."""
     ws = stack.workspace(backend, "tight")
     sol = ws.solve()
-    assert sol.ok, sol.message
+    assert sol.ok or sol.status is stall, sol.message
     assert np.isfinite(sol.x).all()
     return sol, ws
 
@@ -206,7 +212,9 @@ def test_sns_velocity_vs_scaling_lp(backend, inst):
     sns_x, sns_s = ref.sns_velocity(J, xd, lower, upper)
     stack = wbc.Stack(n + 1).add(LinearTask(J, xd, name="task"), scaling=True)
     stack.constrain(Bounds(lower, upper, name="limits"))
-    sol, ws = solve(stack, backend)
+    sol, ws = solve(stack, backend, SCALING_STALLS.get(backend))
+    if not sol.ok:
+        return
     assert 0.0 <= sol.scale <= 1.0
     assert np.all(sol.x >= lower - 1e-8) and np.all(sol.x <= upper + 1e-8)
     np.testing.assert_allclose(J @ sol.x, sol.scale * xd, atol=tol * max(1, abs(xd).max()))
@@ -230,7 +238,9 @@ def test_sns_acceleration_vs_scaling_lp(backend, inst):
     tp = stack.parameter("xdd", m, xdd)
     stack.add(wbc.Cost(Jp @ x["qdd"] + dp, target=tp, name="accel"), scaling=True)
     stack.constrain(Bounds(lower, upper, name="limits"))
-    sol, ws = solve(stack, backend)
+    sol, ws = solve(stack, backend, SCALING_STALLS.get(backend))
+    if not sol.ok:
+        return
     np.testing.assert_allclose(J @ sol.x + drift, sol.scale * xdd,
                                atol=tol * max(1, abs(xdd).max()))
     _assert_sns_agreement(sns_x, sns_s, sol, J, lower, upper, tol)
