@@ -1,6 +1,8 @@
 """Test configuration: deterministic hypothesis, offline."""
 
+import atexit
 import os
+import shutil
 import tempfile
 
 from hypothesis import HealthCheck, settings
@@ -12,5 +14,8 @@ settings.register_profile(
 )
 settings.load_profile("wbc")
 
-# JIT libraries of the test run go to a fresh folder, not the user's cache.
-os.environ.setdefault("WBC_JIT_CACHE", tempfile.mkdtemp(prefix="wbc-test-jit-"))
+# JIT libraries of the test run go to a fresh folder, not the user's cache, removed at the end
+# (subprocesses of the tests inherit the variable, so their libraries land there too).
+if "WBC_JIT_CACHE" not in os.environ:
+    os.environ["WBC_JIT_CACHE"] = tempfile.mkdtemp(prefix="wbc-test-jit-")
+    atexit.register(shutil.rmtree, os.environ["WBC_JIT_CACHE"], ignore_errors=True)

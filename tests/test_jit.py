@@ -3,6 +3,8 @@ compiler falls back to the virtual machine with a warning."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -65,3 +67,24 @@ def test_an_unwritable_cache_falls_back_to_a_process_folder(tmp_path, monkeypatc
     stack = _stack(3)
     fast = wbc.Workspace(jit_compiled(stack.compile()), "daqp", "tight").solve()
     np.testing.assert_allclose(fast.x, stack.workspace("daqp", "tight").solve().x, atol=1e-12)
+
+
+def test_jit_leaves_no_temporary_folder_behind(tmp_path):
+    """A process folder is made only when the cache cannot be written, and removed at exit."""
+    import subprocess
+    import sys
+
+    script = ("import numpy as np, wbc\nfrom wbc.jit import jit_compiled\n"
+              "from wbc.tasks import LinearTask\n"
+              "s = wbc.Stack(2).add(LinearTask(np.eye(2), np.ones(2), name='t'))\n"
+              "print(wbc.Workspace(jit_compiled(s.compile()), 'daqp').solve().ok)\n")
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    for cache in (tmp_path / "cache", blocker / "cache"):  # writable, then not
+        temp = tmp_path / f"tmp_{cache.parent.name}"
+        temp.mkdir()
+        done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                              timeout=120, env={**os.environ, "WBC_JIT_CACHE": str(cache),
+                                                "TMPDIR": str(temp)})
+        assert done.stdout.strip() == "True", done.stderr
+        assert list(temp.iterdir()) == []

@@ -14,9 +14,11 @@ write to a temporary file and rename it, so concurrent processes never load a pa
 
 from __future__ import annotations
 
+import atexit
 import dataclasses
 import hashlib
 import os
+import shutil
 import subprocess
 import tempfile
 import warnings
@@ -40,8 +42,11 @@ def cache_dir() -> Path:
 
 @cache
 def _process_dir() -> Path:
-    """A temporary folder for this process, when the cache folder is not writable."""
-    return Path(tempfile.mkdtemp(prefix="wbc-jit-"))
+    """A temporary folder for this process, when the cache folder is not writable; removed
+    when the process exits (a loaded library stays mapped after its file is gone)."""
+    folder = tempfile.mkdtemp(prefix="wbc-jit-")
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return Path(folder)
 
 
 def compiled_c(function: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS,
@@ -57,8 +62,8 @@ def compiled_c(function: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS,
     compiler = os.environ.get("CC", "cc")
     key = hashlib.sha256("\0".join([source, compiler, *flags, *link]).encode()).hexdigest()[:24]
     name = f"{function.name()}_{key}.so"
-    for folder in (cache_dir(), _process_dir()):
-        library = folder / name
+    for folder in (cache_dir, _process_dir):  # the process folder only if the cache fails
+        library = folder() / name
         try:
             if not library.exists():
                 _build(source, library, compiler, (*flags, "-shared", "-fPIC"), link)
