@@ -42,7 +42,9 @@ The tick (:meth:`SteerableController.step`), for a desired twist ``ξ*``:
 5. Drive controller: ``ξ_init = ξ̂ + t_s K_p (ξ* − ξ̂)`` (one Euler step of
    ``ξ̈ = K_p (ξ* − ξ̂)``), projected onto the null space of the next sample's lateral rows —
    the span of the twist direction ``(X₂, −X₁, X₃)`` of ``X_next``: the *feasible* twist
-   ``q̇_bf``. ``ξ̂`` is then ``q̇_bf`` (the wheels are assumed to track their rates).
+   ``q̇_bf``, scaled uniformly into the base's twist limits (``base.v_max``: the performance
+   limits the paper's controller respects; scaling keeps the ICR). ``ξ̂`` is then ``q̇_bf``
+   (the wheels are assumed to track their rates).
 6. Wheel rates by the inverse actuation model.
 """
 
@@ -64,7 +66,7 @@ from .planar_base import as_vector, require_positive
 from .steerable import SteerableBase
 
 __all__ = ["MPO700_STEER_LIMITS", "SteerStep", "SteerableController", "SteerableDrive",
-           "drive_rates", "icr_of_twist", "steering_of_icr"]
+           "drive_rates", "icr_of_twist", "scale_into", "steering_of_icr"]
 
 #: ``(β̇max [rad/s], β̈max [rad/s²])`` assumed for the MPO700's steer joints. Neither the paper
 #: nor the data sheet we could consult offline gives them; 1 rad/s and 3 rad/s² are a
@@ -103,6 +105,14 @@ def drive_rates(hips: np.ndarray, offset: float, radius: float, steering, steer_
     c, s = np.cos(steering), np.sin(steering)
     f = np.column_stack([c, s, offset - hips[:, 1] * c + hips[:, 0] * s])
     return (f @ np.asarray(twist, dtype=float) + offset * np.asarray(steer_rates)) / radius
+
+
+def scale_into(twist, limits) -> np.ndarray:
+    """``twist`` scaled uniformly (its direction, hence its ICR, kept) so that
+    ``|twist_i| <= limits_i``."""
+    twist = np.asarray(twist, dtype=float)
+    ratio = np.max(np.abs(twist) / np.asarray(limits, dtype=float))
+    return twist / ratio if ratio > 1.0 else twist.copy()
 
 
 def _wrap_half(angle):
@@ -227,7 +237,7 @@ class SteerableController:
         # drive controller: one Euler step of K_p (ξ* − ξ̂), projected on the next ICR's twist
         initial = self.twist + self.dt * self.drive_gain * (desired_twist - self.twist)
         direction = np.array([x_next[1], -x_next[0], x_next[2]])
-        feasible = direction * float(direction @ initial)  # |direction| = 1
+        feasible = scale_into(direction * float(direction @ initial), self.base.v_max)
         wheels = drive_rates(self.hips, self.base.offset, self.base.radius, beta, rates,
                              feasible)
         self.steering, self.steer_rates, self.twist, self.icr = beta, rates, feasible, x_next
