@@ -352,31 +352,30 @@ def swing(x0: np.ndarray, rotation: np.ndarray):
     return references
 
 
-def _signals(robot):
-    def error_vector(tick) -> np.ndarray:
-        """``[p_d − p; log3(R_d Rᵀ)]`` at the true configuration [m, rad]."""
-        pose = tick.robot.frame_pose(tick.q, "ee")
-        target = tick.references["target"]
-        rotation = target[:3, :3] @ pose[:3, :3].T
-        angle = math.acos(min(1.0, max(-1.0, (np.trace(rotation) - 1) / 2)))
-        axis = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
-                         rotation[1, 0] - rotation[0, 1]])
-        log = axis * (0.5 if angle < 1e-9 else angle / (2 * math.sin(angle)))
-        return np.concatenate([target[:3, 3] - pose[:3, 3], log])
-
-    def sigma_min(tick) -> float:
-        J_m = tick.robot.frame_jacobian(tick.q, "ee")[:3, robot.nv - robot.n_arm:]
-        return float(np.linalg.svd(J_m, compute_uv=False)[-1])
-
-    return {"ee_error_vector": error_vector, "sigma_min": sigma_min}
+def truth_measures(robot, q: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(errors, σ_min)`` over a run, evaluated in one vectorised CasADi call: per tick
+    ``[p_d − p; log3(R_d Rᵀ)]`` [m, rad] at the true configurations ``q`` (N, nq) for the
+    targets (N, 4, 4), and ``σ_min`` of the arm's position Jacobian."""
+    registry = registry_of(robot)
+    q_sym, J_m = arm_jacobian(robot)
+    pose = registry.get("pose[ee]").symbolic()(q_sym)
+    target = ca.SX.sym("target", 4, 4)
+    error = ca.vertcat(target[:3, 3] - pose[:3, 3], so3_log(target[:3, :3] @ pose[:3, :3].T))
+    measure = ca.Function("truth", [q_sym, target], [error, smallest_singular_value(J_m)])
+    n = q.shape[0]
+    # the targets side by side: column block k is target k (column-major, as CasADi reads)
+    side_by_side = np.transpose(targets, (1, 0, 2)).reshape(4, 4 * n)
+    errors, sigma = measure.map(n)(q.T, side_by_side)
+    return np.array(errors).T, np.array(sigma).ravel()
 
 
 def simulate(robot, planner, references, seconds: float, setup: Setup, seed: int = 0):
     """One closed-loop run with the base's odometry error; returns the series of the study."""
     sim = Simulation(robot, planner, setup.dt, actuation=[CommandedVelocityOdometry()],
-                     command="acceleration", seed=seed, signals=_signals(robot))
+                     command="acceleration", seed=seed)
     run = sim.run(seconds=seconds, references=references)
-    errors = run.signals["ee_error_vector"]
+    targets = np.array([references(t)["target"] for t in run.t])
+    errors, sigma = truth_measures(robot, run.q, targets)
     commanded = run.v_est + run.command * run.dt  # the velocity the robot was commanded
     lim = robot.limits
     arm = slice(robot.nv - robot.n_arm, robot.nv)
@@ -390,7 +389,7 @@ def simulate(robot, planner, references, seconds: float, setup: Setup, seed: int
         "t": run.t, "base_velocity": run.base_velocity,
         "base_velocity_command": commanded[:, :run.nv_base],
         "ee_error": np.linalg.norm(errors[:, :3], axis=1), "ee_error_vector": errors,
-        "sigma_min": run.signals["sigma_min"], "arm_velocity": run.v[:, arm],
+        "sigma_min": sigma, "arm_velocity": run.v[:, arm],
         "limit_violation": violations, "status": run.status, "tick_s": run.tick_s,
         "model_s": run.model_s, "assembly_s": run.assembly_s, "solve_s": run.solve_s,
         "failures": run.failures,
@@ -435,11 +434,16 @@ def _claims(runs: dict, timing: dict, bounds_loops: dict, equivalence: dict) -> 
     e = {key: {method: max_errors(s) for method, s in methods.items()}
          for key, methods in runs.items()}
     for method in ("amp_qp", "amp_closed_form"):
+        series = runs["circle_r010"][method]
         ours = m["circle_r010"][method]["duration_s"]
+        sigma = np.asarray(series["sigma_min"])
         claims.append(Claim(
             f"base_still_r010_{method}", f"R = 0.1 m (inside the arm's workspace): AMP "
             f"({method}) never commands the base (base motion duration [s])", 0.0, ours,
-            ours == 0.0, f"commanded base speed > {MOVING} in any component"))
+            ours == 0.0, f"commanded base speed > {MOVING} in any component; σ_min of our "
+            f"Gen3's position Jacobian falls to {sigma.min():.4f} at t = "
+            f"{series['t'][int(np.argmin(sigma))]:.2f} s on this circle (threshold "
+            f"{POSITION.sigma_thr}, the paper's, tuned on its robot), which enables the base"))
     trad = m["circle_r010"]["traditional"]
     claims.append(Claim(
         "traditional_base_moves_r010", "R = 0.1 m: the traditional planner moves the base all "
@@ -473,6 +477,16 @@ def _claims(runs: dict, timing: dict, bounds_loops: dict, equivalence: dict) -> 
         "motion time by 84.9 % [%]", 84.9, round(reduction, 1), abs(reduction - 84.9) <= 15.0,
         f"amp_qp {amp['duration_s']:.2f} s vs traditional {trad['duration_s']:.2f} s; "
         "holds within ±15 points"))
+    series = runs["circle_r025"]["amp_qp"]
+    moving = np.flatnonzero((np.abs(np.asarray(series["base_velocity_command"])) > MOVING)
+                            .any(axis=1))
+    start = float(series["t"][moving[0]]) if moving.size else float("nan")
+    claims.append(Claim(
+        "base_activation_r025", "R = 0.25 m: AMP starts the base at 6.40 s and moves it for "
+        "12.08 s (start [s], duration [s])", {"start_s": 6.40, "duration_s": 12.08},
+        {"start_s": round(start, 2), "duration_s": round(amp["duration_s"], 2)},
+        abs(start - 6.40) <= 2.0 and abs(amp["duration_s"] - 12.08) <= 3.0,
+        "amp_qp; holds within ±2 s (start) and ±3 s (duration)"))
     ratios = {k: round(_pct(amp[k], trad[k]), 1) for k in ("rms_x_cm_s", "rms_y_cm_s",
                                                           "rms_w_deg_s")}
     claims.append(Claim(
@@ -499,14 +513,17 @@ def _claims(runs: dict, timing: dict, bounds_loops: dict, equivalence: dict) -> 
     sing = runs["singularity"]
     lowest = {meth: round(float(np.min(s["sigma_min"])), 4) for meth, s in sing.items()}
     worst = {meth: round(100 * float(np.max(s["ee_error"])), 2) for meth, s in sing.items()}
+    below = np.flatnonzero(np.asarray(sing["without"]["sigma_min"]) < 0.05)
+    singular_at = round(float(sing["without"]["t"][below[0]]), 2) if below.size else None
     claims.append(Claim(
         "singularity_avoidance", "R = 0.25 m: without singularity avoidance the arm runs into "
         "a singularity (σ_min → 0, tracking lost at ≈ 8.35 s); with it σ_min stays away",
-        "σ_min ≈ 0 at 8.35 s without; ≥ ≈ 0.15 with", {"min_sigma": lowest,
-                                                        "max_error_cm": worst},
+        "σ_min ≈ 0 at 8.35 s without; ≥ ≈ 0.15 with",
+        {"min_sigma": lowest, "max_error_cm": worst, "sigma_below_0.05_at_s": singular_at},
         lowest["without"] < 0.05 and lowest["with"] >= 0.1,
         "σ_min of the arm's position Jacobian at the true state; holds when it falls below "
-        "0.05 without avoidance and stays ≥ 0.1 with it"))
+        "0.05 without avoidance (σ switch and tertiary off) and stays ≥ 0.1 with both; "
+        "'no_tertiary': the σ switch alone"))
     amp_runs = [(key, meth, s) for key, methods in runs.items()
                 for meth, s in methods.items() if meth.startswith("amp")]
     violating = {f"{key}/{meth}": int(np.sum(s["limit_violation"])) for key, meth, s in amp_runs}
@@ -524,11 +541,17 @@ def _claims(runs: dict, timing: dict, bounds_loops: dict, equivalence: dict) -> 
         f"{bounds_loops['viable_violated_pct']} %"))
     daqp = timing.get("daqp")
     if daqp is not None:
+        median_ms = 1e3 * daqp["tick_median_s"]
         claims.append(Claim(
-            "tick_time", "AMP's tick fits a real-time loop: paper 14.8 ms per loop (C++, Xeon "
-            "X5550); ours: median QP tick with daqp [ms], target ≤ 0.05 ms", 14.8,
-            round(1e3 * daqp["tick_median_s"], 4), daqp["tick_median_s"] <= 50e-6,
-            "wbc.Controller(jit=True) through wbc.sim; different machine and language"))
+            "tick_time", "AMP runs in real time: 14.8 ms per loop in the paper (C++, Xeon "
+            "X5550); ours: median QP tick with daqp [ms]", 14.8, round(median_ms, 4),
+            median_ms <= 14.8, "wbc.Controller(jit=True) through wbc.sim; another machine "
+            "and language, so only the order of magnitude compares"))
+        claims.append(Claim(
+            "tick_target", "the project's target: AMP's QP tick ≤ 0.05 ms median with daqp "
+            "[ms]", 0.05, round(median_ms, 4), median_ms <= 0.05,
+            "four QPs per tick (scaling LP, level 0 with s fixed, base level, manipulability "
+            "level); the split is in the summary"))
     claims.append(Claim(
         "qp_equals_closed_form", "where the arm alone does the task with no bound active, the "
         "QP equals the closed form (max |Δq̈| over those random states) [rad/s²]", "—",
