@@ -39,6 +39,7 @@ import wbc
 import wbc.robots
 from wbc.experiments.machine import describe_machine
 from wbc.experiments.progress import report_progress
+from wbc.experiments.study import save_figure
 from wbc.robots.fixed_base import FixedBaseRobot
 from wbc.solvers import available_backends
 from wbc.tasks import Bounds, ConfigurationLimit, FrameTask, PostureTask, VelocityLimit
@@ -266,13 +267,6 @@ def markdown(report: dict) -> str:
     return "\n".join(out) + "\n"
 
 
-def _save(plt, fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
-
-
 def plots(report: dict, out: Path) -> list[Path]:
     """Median tick per backend (one panel per robot, bars per stack) and the scaling curves."""
     import matplotlib
@@ -294,10 +288,11 @@ def plots(report: dict, out: Path) -> list[Path]:
             ax.set_xticks(np.arange(len(backends)) + 0.4 - width / 2)
             ax.set_xticklabels(backends, rotation=45, ha="right")
             ax.set_yscale("log")
+            ax.set_xlabel("QP backend")
             ax.set_ylabel("median tick [µs]")
-            ax.set_title(name)
-            ax.legend(fontsize=7)
-        written.append(_save(plt, fig, out / "solver_timing.png"))
+            ax.set_title(f"{name}: median tick per stack")
+            ax.legend(title="stack", fontsize=7)
+        written.append(out / save_figure(fig, out / "solver_timing.png"))
     if report["scaling"]:
         fig, ax = plt.subplots(figsize=(6, 4))
         for backend, per in report["scaling"].items():
@@ -305,11 +300,11 @@ def plots(report: dict, out: Path) -> list[Path]:
             ax.plot(n, [per[str(k)]["stats"]["tick"]["median"] for k in n], "o-", label=backend)
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("joints")
+        ax.set_xlabel("joints of the serial chain [-]")
         ax.set_ylabel("median tick [µs]")
-        ax.set_title("one_level stack on serial chains")
-        ax.legend(fontsize=7)
-        written.append(_save(plt, fig, out / "scaling.png"))
+        ax.set_title("Scaling: one_level stack on serial chains")
+        ax.legend(title="QP backend", fontsize=7)
+        written.append(out / save_figure(fig, out / "scaling.png"))
     return written
 
 
