@@ -18,9 +18,12 @@ import sys
 import warnings
 from pathlib import Path
 
-MODULES = ["wbc", "wbc.tasks", "wbc.robots", "wbc.solvers", "wbc.solvers.reference", "wbc.sim",
-           "wbc.quantities", "wbc.infeasibility", "wbc.jit", "wbc.checks", "wbc.errors",
-           "wbc.experiments.study"]
+# The package (its public names), then every module whose docstring explains a part (``wbc``
+# has an ``__all__``, so pdoc would not list its modules by itself).
+MODULES = ["wbc", "wbc.variables", "wbc.terms", "wbc.stack", "wbc.compiler", "wbc.workspace",
+           "wbc.controller", "wbc.solution", "wbc.qp", "wbc.quantities", "wbc.infeasibility",
+           "wbc.jit", "wbc.fused", "wbc.checks", "wbc.errors", "wbc.sim", "wbc.tasks",
+           "wbc.robots", "wbc.solvers", "wbc.solvers.reference", "wbc.experiments.study"]
 ROLE = re.compile(r":(?:class|func|meth|mod|attr|data|exc|obj):`~?([^`]+)`")
 NAMEDTUPLE_LIMITATION = r"Error parsing type annotation .* for wbc\.robots\.\w+\.__init__\."
 

@@ -39,3 +39,15 @@ def test_readme_block_runs_as_written(index, tmp_path, monkeypatch):
     namespace: dict = {"__name__": "__readme__"}
     for line, code in BLOCKS[start:index + 1]:
         exec(compile(code, f"README.md, block at line {line}", "exec"), namespace)
+
+
+def test_the_api_reference_builds_without_warnings(tmp_path):
+    """The README's docs command (pdoc is in the ``docs`` extra, not in the test install)."""
+    pytest.importorskip("pdoc")
+    import runpy
+
+    build = runpy.run_path(str(README.parent / "docs" / "build.py"), run_name="docs_build")
+    assert build["main"](["--out", str(tmp_path)]) == 0  # a warning would raise
+    assert (tmp_path / "wbc.html").is_file() and (tmp_path / "wbc" / "workspace.html").is_file()
+    assert ":class:" not in (tmp_path / "wbc.html").read_text()
+    assert "python docs/build.py" in README.read_text()
