@@ -24,8 +24,9 @@ taken modulo π (a wheel reverses its drive rather than turning half a turn).
 The tick (:meth:`SteerableController.step`), for a desired twist ``ξ*``:
 
 1. ``X*`` of ``ξ*``. *Route*: of ``±X*`` (the same ICR) the one nearer the current ``X`` is
-   taken; when that is ``−X*`` the ICR passes through infinity — the paper's *complementary
-   route* through the borders of the ICR space; otherwise the *direct* route.
+   taken. When the way there crosses ``X₃ = 0`` the ICR passes through infinity — the paper's
+   *complementary route* through the borders of the Cartesian ICR space; otherwise it is the
+   *direct* route. Both are the same straight move on the sphere of homogeneous ICRs.
 2. ICR velocity controller: ``X_ref = X + λ_ICR t_s (X* − X)``.
 3. Next-sample ICR as a QP (a :class:`wbc.Stack`, any backend): ``X_next = X + T u`` with
    ``T`` an orthonormal basis of the tangent plane at ``X`` and ``u ∈ R²`` the decision,
@@ -138,8 +139,9 @@ class SteerStep:
         steer_rates: ``β̇_ref`` [rad/s], ``(N,)``; steer_accelerations: ``β̈`` [rad/s²].
         drive_rates: ``φ̇_ref`` [rad/s], ``(N,)``.
         icr: homogeneous ICR after the tick ``(3,)``.
-        route: ``"direct"``, ``"complementary"`` or ``"none"`` (zero desired twist).
-        qp_status: status of the ICR QP (``"solved"``, or the failure; ``"skipped"``).
+        route: ``"direct"``, ``"complementary"`` or ``"none"`` (zero desired twist: the ICR is
+            held, the steering decelerates).
+        qp_status: status of the ICR QP (``"solved"``, or the failure).
         relaxed: whether the acceleration limits had to be dropped this tick.
         qp_s: wall time of the ICR QP [s].
     """
@@ -167,7 +169,7 @@ class SteerableController:
         icr_gain: ``λ`` of the ICR velocity controller [1/s]; not given in the paper, 10 chosen
             (the ICR reference closes a quarter of the gap per 25 ms tick).
         drive_gain: ``K_p`` of the drive controller [1/s] (Table I: 2).
-        backend: QP backend of the ICR QP.
+        backend: QP backend of the ICR QP; profile: its tolerance profile.
         steering: initial steering angles [rad] (default: zeros, i.e. the ICR of a pure
             forward translation).
     """
@@ -175,7 +177,8 @@ class SteerableController:
     def __init__(self, base: SteerableBase, dt: float = 0.025,
                  steer_rate: float = MPO700_STEER_LIMITS[0],
                  steer_acceleration: float = MPO700_STEER_LIMITS[1], icr_gain: float = 10.0,
-                 drive_gain: float = 2.0, backend: str = "daqp", steering=None) -> None:
+                 drive_gain: float = 2.0, backend: str = "daqp", profile: str = "default",
+                 steering=None) -> None:
         require_positive(dt=dt, steer_rate=steer_rate, steer_acceleration=steer_acceleration,
                          icr_gain=icr_gain, drive_gain=drive_gain)
         if steer_rate * dt >= math.pi / 4:
@@ -197,7 +200,7 @@ class SteerableController:
         stack.add(LinearTask(np.zeros((3, 2)), np.zeros(3), name="icr_ref"), priority=1)
         stack.constrain(LinearConstraint(*rows, name="steer_rate"))
         self.stack = stack
-        self.workspace = stack.workspace(backend)
+        self.workspace = stack.workspace(backend, profile)
         view = self.workspace.view
         self._A, self._b = view("icr_ref.A"), view("icr_ref.b")
         self._rows = {name: (view(f"{name}.C"), view(f"{name}.upper"))
@@ -220,17 +223,16 @@ class SteerableController:
         """One sample period for the desired body twist ``ξ*`` [m/s, m/s, rad/s]."""
         target = icr_of_twist(as_vector(desired_twist, 3, "desired_twist"))
         x = self.icr
-        route, status, relaxed, qp_s = "none", "skipped", False, 0.0
+        route, x_ref = "none", x  # no desired ICR: hold it (the steering decelerates)
         if target is not None:
-            route = "direct"
-            if float(target @ x) < 0.0:  # -X* is the same ICR, reached through infinity
-                target, route = -target, "complementary"
+            if float(target @ x) < 0.0:  # ±X* is the same ICR: take the nearer one
+                target = -target
+            # crossing X₃ = 0 is passing through infinity: the paper's complementary route
+            route = "complementary" if target[2] * x[2] < 0.0 else "direct"
             x_ref = x + self.icr_gain * self.dt * (target - x)
-            t0 = time.perf_counter()
-            x_next, status, relaxed = self._next_icr(x, x_ref)
-            qp_s = time.perf_counter() - t0
-        else:
-            x_next = x
+        t0 = time.perf_counter()
+        x_next, status, relaxed = self._next_icr(x, x_ref)
+        qp_s = time.perf_counter() - t0
         beta = steering_of_icr(self.hips, x_next, self.steering)
         rates = (beta - self.steering) / self.dt
         accelerations = (rates - self.steer_rates) / self.dt
