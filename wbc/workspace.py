@@ -149,6 +149,11 @@ class Workspace:
                        if np.isnan(self.p[o:o + shape[0] * shape[1]]).any()}
         self._views = {name: self.p[o:o + shape[0] * shape[1]].reshape(shape, order="F")
                        for name, (o, shape, _) in compiled.parameters.items()}
+        # "<t>.lower" and "<t>.upper" -> (stem, lower name, upper name), for pairs that exist
+        self._bound_pairs = {f"{stem}.{side}": (stem, f"{stem}.lower", f"{stem}.upper")
+                             for stem in {name.rpartition(".")[0] for name in self._views}
+                             if f"{stem}.lower" in self._views and f"{stem}.upper" in self._views
+                             for side in ("lower", "upper")}
         self._E = np.zeros((compiled.n_e, n))  # weighted cost rows of every level
         self._S = np.zeros((compiled.n_s, n))  # soft-inequality rows of every level
         self._lS = np.zeros(compiled.n_s)  # their bounds shifted by the optimal slacks
@@ -194,12 +199,13 @@ class Workspace:
         """Raise :class:`~wbc.BoundsOrderError` if new ``values`` of a parameter pair
         ``"<t>.lower"`` / ``"<t>.upper"`` would cross (a side not in ``values`` keeps its
         current value)."""
+        pairs = self._bound_pairs
         for name in values:
-            stem, _, side = name.rpartition(".")
-            if side in ("lower", "upper") and f"{stem}.lower" in self._views \
-                    and f"{stem}.upper" in self._views:
-                lower = values.get(f"{stem}.lower", self._views[f"{stem}.lower"])
-                upper = values.get(f"{stem}.upper", self._views[f"{stem}.upper"])
+            pair = pairs.get(name)
+            if pair is not None:
+                stem, lower_name, upper_name = pair
+                lower = values.get(lower_name, self._views[lower_name])
+                upper = values.get(upper_name, self._views[upper_name])
                 check_bounds_order(lower, upper, f"parameters {stem!r}.lower/.upper")
 
     def checked_value(self, name: str, value, what: str | None = None) -> np.ndarray:
