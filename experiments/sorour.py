@@ -327,10 +327,12 @@ def figures(runs: dict, out_dir: Path) -> list[str]:
     names = []
     fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
     for ax, v in zip(axes, VARIANTS, strict=True):
-        ax.plot(runs[v]["t"], runs[v]["pose_error_norm"])
+        ax.plot(runs[v]["t"], runs[v]["pose_error_norm"], label=v)
         ax.set_ylabel(f"{v}\n||e_p|| [m, rad]")
         ax.set_xlabel("time [s]")
         ax.grid(True)
+        ax.legend(loc="upper right")
+    fig.suptitle("Pose error norm per variant")
     names.append(save_figure(fig, out_dir / "sorour_error.png"))
     fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     for v in VARIANTS[1:]:
@@ -342,6 +344,8 @@ def figures(runs: dict, out_dir: Path) -> list[str]:
     axes[0].legend()
     axes[1].set_ylabel("ψ [-]")
     axes[1].set_xlabel("time [s]")
+    axes[1].legend()
+    fig.suptitle("Task sharing: pose error and ψ")
     names.append(save_figure(fig, out_dir / "sorour_psi.png"))
     fig, ax = plt.subplots(figsize=(6, 5))
     for v in VARIANTS:
@@ -350,6 +354,7 @@ def figures(runs: dict, out_dir: Path) -> list[str]:
     ax.set_xlabel("base x [m]")
     ax.set_ylabel("base y [m]")
     ax.set_aspect("equal")
+    ax.set_title("Base path per variant")
     ax.legend()
     names.append(save_figure(fig, out_dir / "sorour_base_path.png"))
     plt.close("all")
