@@ -19,7 +19,7 @@ What keeps its meaning
   :attr:`FusedWorkspace.fallback_solves` counts such ticks. (DAQP's "soft optimal" is a failure
   for the generated code and a success for the backend: such a tick is reported solved.)
   Crossed sides (a lower bound above its upper one, which the bundled daqp does not check)
-  count as a failure too.
+  make the call fail too. A failed call writes no output: the previous command stays.
 * **Clipping.** ``x`` is clipped into ``[lb, ub]`` inside the generated function, as
   :meth:`Workspace.solve` does.
 * **Fallbacks** of :class:`~wbc.Controller` follow a failed solve, which always comes from the
@@ -62,7 +62,7 @@ import numpy as np
 from .compiler import LEVEL, CompiledStack
 from .errors import WbcError
 from .jit import DEFAULT_FLAGS, compiled_c
-from .qp import Status
+from .qp import QPResult, Status
 from .solution import LevelResult, Solution, Timings
 from .workspace import Workspace
 
@@ -84,6 +84,25 @@ def daqp_link_arguments() -> tuple[str, ...]:
     return (f"-I{include}", str(library), "-lm")
 
 
+_SETUP_FAILED = "if (flag<0) return 1;"
+
+
+def initialise_success(source: str) -> str:
+    """Correct CasADi's generated daqp code (casadi 3.6–3.8): when daqp's setup fails (e.g. a
+    Hessian that is not positive definite), ``casadi_daqp_solve`` returns before it writes the
+    QP's ``success`` flag, and the caller, which ignores that return value, reads the flag
+    uninitialised from the stack — a failed setup can then pass for a solved QP, with garbage
+    in ``x``. The patch writes ``success = 0`` on that path.
+
+    Raises:
+        RuntimeError: the generated code does not have the expected shape (another casadi).
+    """
+    if source.count(_SETUP_FAILED) != 1:
+        raise RuntimeError("the daqp code CasADi generates has changed (expected one "
+                           f"{_SETUP_FAILED!r}); the fused tick is not built")
+    return source.replace(_SETUP_FAILED, "if (flag<0) { d_qp->success = 0; return 1; }")
+
+
 def why_not_fused(compiled: CompiledStack, options: dict) -> str | None:
     """Why ``compiled`` cannot take the fused path with daqp ``options``, or ``None`` if it
     can (see the module docstring)."""
@@ -98,9 +117,12 @@ def why_not_fused(compiled: CompiledStack, options: dict) -> str | None:
 
 
 def fused_function(compiled: CompiledStack, options: dict) -> ca.Function:
-    """The CasADi function ``p -> x`` of a single-QP stack: its level function, daqp (CasADi's
-    conic node with ``options``) and the clipping of ``x`` into ``[lb, ub]``. Evaluates on
-    CasADi's virtual machine as it is; :func:`compiled_c` makes it C.
+    """The CasADi function ``p -> (x, done, z, y, z_bounds)`` of a single-QP stack: its level
+    function, daqp (CasADi's conic node with ``options``), ``x`` clipped into ``[lb, ub]``,
+    ``done`` (the cost; unwritten, as every output, if daqp fails or sides cross), the QP's
+    solution ``z`` (slacks included) and its multipliers (rows, bounds; the sign convention of
+    :mod:`wbc.qp`).
+    Evaluates on CasADi's virtual machine as it is; :func:`compiled_c` makes it C.
 
     Raises:
         WbcError: the stack is not a single QP, or an option is not a daqp setting.
@@ -120,14 +142,17 @@ def fused_function(compiled: CompiledStack, options: dict) -> ca.Function:
     solver = ca.conic("daqp", "daqp", {"h": ca.Sparsity.dense(n_z, n_z),
                                        "a": ca.Sparsity.dense(m, n_z)},
                       {"daqp": dict(options), "error_on_fail": True})
+    # The daqp bundled with casadi does not check lower <= upper: when sides cross, it is given
+    # H = −I instead, which its setup refuses (not convex), so that the call fails as a whole and
+    # writes no output (the previous command stays in place for the "last" fallback).
+    crossed = ca.sum1(lb > ub) + ca.sum1(lA > uA)
+    H = ca.if_else(crossed == 0, H, -ca.MX.eye(n_z))
     qp = solver(h=H, g=g, a=AT.T, lba=lA, uba=uA, lbx=ca.vertcat(lb, -free),
                 ubx=ca.vertcat(ub, free))
     x = ca.fmin(ca.fmax(qp["x"][:n], lb), ub)
-    # "done" is the cost, written after a successful solve only (see FusedWorkspace.solve), and
-    # NaN when sides cross: the daqp bundled with casadi does not check lower <= upper.
-    crossed = ca.sum1(lb > ub) + ca.sum1(lA > uA)
-    done = ca.if_else(crossed == 0, qp["cost"], math.nan)
-    return ca.Function("fused_tick", [p], [x, done], ["p"], ["x", "done"])
+    # "done" (the cost) is written after a successful solve only: see FusedWorkspace.solve
+    return ca.Function("fused_tick", [p], [x, qp["cost"], qp["x"], qp["lam_a"], qp["lam_x"]],
+                       ["p"], ["x", "done", "z", "y", "z_bounds"])
 
 
 class FusedWorkspace(Workspace):
@@ -156,11 +181,11 @@ class FusedWorkspace(Workspace):
         settings = dict(self._blocks[0].backend.options)  # the profile, resolved
         function = fused_function(compiled, settings)
         if compile:
-            function = compiled_c(function, DEFAULT_FLAGS, daqp_link_arguments())
+            function = compiled_c(function, DEFAULT_FLAGS, daqp_link_arguments(),
+                                  initialise_success)
         self.function = function
         self.fallback_solves = 0  # ticks the generated daqp did not solve
-        n = compiled.n
-        self._x = np.zeros(n)
+        self._x = np.zeros(compiled.n)
         self._buffer, self._evaluate = function.buffer()
         self._buffer.set_arg(0, memoryview(self.p))
         self._buffer.set_res(0, memoryview(self._x))
@@ -170,6 +195,11 @@ class FusedWorkspace(Workspace):
         self._buffer.set_res(1, memoryview(done))
         self._done = memoryview(done)  # items as Python floats: cheaper than numpy scalars
         block = compiled.blocks[0]
+        self._qp_result = QPResult(np.zeros(block.n_z), Status.SOLVED, np.zeros(block.m_total),
+                                   np.zeros(block.n_z))
+        for i, out in enumerate((self._qp_result.x, self._qp_result.y, self._qp_result.z), 2):
+            if out.size:
+                self._buffer.set_res(i, memoryview(out))
         self._timings = Timings()
         self._solution = Solution(self._x, Status.SOLVED,
                                   [LevelResult(block.label, Status.SOLVED, self._x, 0)],
@@ -196,6 +226,15 @@ class FusedWorkspace(Workspace):
         self.fallback_solves += 1
         return super().solve()
 
+    def last_qps(self) -> list[tuple]:
+        """As :meth:`Workspace.last_qps`; after a fused tick, the QP's arrays are evaluated
+        again (the fused call keeps them inside C) and the result is the fused solve's."""
+        if self._solved is not self._no_qps:
+            return super().last_qps()
+        state = self._blocks[0]
+        state.evaluate()
+        return [(state.block.label, state.qp, self._qp_result)]
+
 
 def compiler_available() -> bool:
     """Whether the C compiler of :mod:`wbc.jit` (``$CC``, default ``cc``) is on the path."""
@@ -203,4 +242,4 @@ def compiler_available() -> bool:
 
 
 __all__ = ["DAQP_SETTINGS", "FusedWorkspace", "compiler_available", "daqp_link_arguments",
-           "fused_function", "why_not_fused"]
+           "fused_function", "initialise_success", "why_not_fused"]

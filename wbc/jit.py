@@ -22,6 +22,7 @@ import shutil
 import subprocess
 import tempfile
 import warnings
+from collections.abc import Callable
 from functools import cache
 from pathlib import Path
 
@@ -50,15 +51,19 @@ def _process_dir() -> Path:
 
 
 def compiled_c(function: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS,
-               link: tuple[str, ...] = ()) -> ca.Function:
+               link: tuple[str, ...] = (),
+               patch: Callable[[str], str] | None = None) -> ca.Function:
     """``function`` (same name, inputs and outputs) evaluated by compiled C from the cache,
     building the library first if needed. ``link``: extra compiler arguments placed after the
     source, e.g. ``-I`` folders and static libraries the generated code calls (CasADi's daqp:
-    see :mod:`wbc.fused`); they are part of the cache key. Raises ``RuntimeError`` if the
-    compiler fails."""
+    see :mod:`wbc.fused`); they are part of the cache key. ``patch``: a correction applied to
+    the generated source before it is hashed and compiled. Raises ``RuntimeError`` if the
+    compiler (or ``patch``) fails."""
     generator = ca.CodeGenerator(f"{function.name()}.c", {"with_header": False})
     generator.add(function)
     source = generator.dump()
+    if patch is not None:
+        source = patch(source)
     compiler = os.environ.get("CC", "cc")
     key = hashlib.sha256("\0".join([source, compiler, *flags, *link]).encode()).hexdigest()[:24]
     name = f"{function.name()}_{key}.so"

@@ -1,0 +1,279 @@
+"""The fused tick (:mod:`wbc.fused`): compiled C equals the virtual machine and the ordinary
+daqp path (active bounds, hard and soft rows), failures keep their statuses and fallbacks, the
+controller picks the path as documented, and a tick allocates nothing in steady state.
+No speed is asserted."""
+
+from __future__ import annotations
+
+import tracemalloc
+
+import numpy as np
+import pytest
+from helpers import assert_kkt, kkt_residuals
+
+import wbc
+from wbc.fused import FusedWorkspace, fused_function, why_not_fused
+from wbc.tasks import (
+    Bounds,
+    ConfigurationLimit,
+    FrameTask,
+    LinearConstraint,
+    LinearTask,
+    PostureTask,
+    VelocityLimit,
+)
+
+N = 6
+DT = 0.01
+Q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
+
+
+def one_qp_stack() -> wbc.Stack:
+    """One level: a 3-row task, a soft inequality row, a hard row and bounds (every number a
+    parameter, so that one compiled function serves every instance)."""
+    stack = wbc.Stack(N, damping=0.05)
+    stack.add(LinearTask(np.ones((3, N)), np.ones(3), name="task"))
+    stack.add(LinearConstraint(np.ones((1, N)), [-1.0], [1.0], name="soft"), weight=2.0)
+    stack.constrain(LinearConstraint(np.ones((1, N)), [-1.0], [1.0], name="row"))
+    stack.constrain(Bounds(-np.ones(N), np.ones(N), name="box"))
+    stack.constrain(Bounds(-np.inf, np.inf, name="floor"))  # with "box", sides can cross
+    return stack
+
+
+def instance(rng, active: bool) -> dict:
+    """Random data; ``active``: tight bounds and rows, so that several are active."""
+    width = 0.1 if active else 10.0
+    return {"task.A": rng.standard_normal((3, N)), "task.b": 3 * rng.standard_normal(3),
+            "soft.C": rng.standard_normal((1, N)), "soft.lower": [-width], "soft.upper": [width],
+            "row.C": rng.standard_normal((1, N)), "row.lower": [-width], "row.upper": [width],
+            "box.lower": -width * np.ones(N), "box.upper": width * np.ones(N)}
+
+
+@pytest.fixture(scope="module")
+def workspaces():
+    """(compiled C, virtual machine, ordinary daqp) on the same stack, tight profile."""
+    compiled = one_qp_stack().compile()
+    return (FusedWorkspace(compiled, "tight"), FusedWorkspace(compiled, "tight", compile=False),
+            wbc.Workspace(compiled, "daqp", "tight"))
+
+
+@pytest.mark.parametrize("active", [False, True])
+def test_compiled_c_equals_the_virtual_machine_and_the_ordinary_path(workspaces, active):
+    rng = np.random.default_rng(int(active))
+    for _ in range(20):
+        data = instance(rng, active)
+        solutions = []
+        for ws in workspaces:
+            ws.set(**data)
+            solution = ws.solve()
+            assert solution.ok, solution.message
+            solutions.append(solution.x.copy())
+            assert_kkt(ws, tol=1e-8)
+        c, vm, ordinary = solutions
+        np.testing.assert_allclose(c, vm, atol=1e-12)
+        np.testing.assert_allclose(c, ordinary, atol=1e-8)
+        lower, upper = data["box.lower"], data["box.upper"]
+        assert np.all(c >= lower) and np.all(c <= upper)  # clipped exactly into the bounds
+    assert workspaces[0].fallback_solves == workspaces[1].fallback_solves == 0
+
+
+def test_the_kkt_check_of_a_fused_tick_can_fail(workspaces):
+    fused = workspaces[0]
+    fused.set(**instance(np.random.default_rng(5), active=True))
+    assert fused.solve().ok
+    (_, qp, result), = fused.last_qps()
+    assert np.abs(result.y).max() + np.abs(result.z).max() > 1e-6  # something is active
+    assert max(kkt_residuals(qp, result).values()) < 1e-8
+    flipped = wbc.QPResult(result.x, result.status, -result.y, -result.z)
+    assert max(kkt_residuals(qp, flipped).values()) > 1e-6
+
+
+@pytest.mark.parametrize("crossing", ["bounds", "rows"])
+def test_an_infeasible_tick_keeps_its_status_and_message(workspaces, crossing):
+    fused, _, ordinary = workspaces
+    data = instance(np.random.default_rng(7), active=False)
+    if crossing == "bounds":  # lower > upper: the bundled daqp does not check it, the fused
+        data["floor.lower"] = np.full(N, -np.inf)  # function does
+        data["floor.lower"][2] = 11.0
+    else:  # consistent sides, contradictory rows and bounds: daqp finds it infeasible
+        data["box.lower"], data["box.upper"] = -np.ones(N), np.ones(N)
+        data["row.C"] = np.ones((1, N))
+        data["row.lower"], data["row.upper"] = [N + 1.0], [N + 2.0]
+    failures = fused.fallback_solves
+    expected = ordinary.set(**data).solve() if crossing == "rows" else None
+    solution = fused.set(**data).solve()
+    assert fused.fallback_solves == failures + 1
+    assert solution.status is wbc.Status.INFEASIBLE and not solution.partial
+    assert np.array_equal(solution.x, np.zeros(N))  # never a silent garbage command
+    if expected is not None:
+        assert solution.message == expected.message and solution.conflict == expected.conflict
+    fused.set(**instance(np.random.default_rng(8), active=False),
+              **{"floor.lower": np.full(N, -np.inf)})
+    assert fused.solve().ok  # and the next tick is fused again
+    assert fused.fallback_solves == failures + 1
+
+
+def test_what_is_not_fused_says_why():
+    two_levels = wbc.Stack(3, damping=0.1)
+    two_levels.add(LinearTask(np.eye(3)[:1], [1.0], name="a"), priority=0)
+    two_levels.add(LinearTask(np.eye(3), np.ones(3), name="b"), priority=1)
+    assert "2 QPs" in why_not_fused(two_levels.compile(), {})
+    undamped = wbc.Stack(3).add(LinearTask(np.eye(3), np.ones(3), name="a"))
+    assert "min-norm" in why_not_fused(undamped.compile(), {})  # ρ = 0: a min-norm level
+    single = one_qp_stack().compile()
+    assert why_not_fused(single, {"primal_tol": 1e-9}) is None
+    assert "sing_tol" in why_not_fused(single, {"sing_tol": 1e-9})
+    with pytest.raises(wbc.WbcError, match="cannot fuse"):
+        fused_function(two_levels.compile(), {})
+
+
+# ----------------------------------------------------------------------------- controller
+@pytest.fixture(scope="module")
+def robot():
+    from wbc.robots.fixed_base import load_panda
+
+    return load_panda()
+
+
+def panda_stack(robot, levels: int = 1) -> wbc.Stack:
+    stack = wbc.Stack(wbc.Variables(v=robot.nv), damping=1e-4)
+    stack.add(FrameTask(robot, "ee", gain=0.5, name="ee"))
+    stack.add(PostureTask(robot, gain=0.5, weight=1e-4, name="posture"), priority=levels - 1)
+    stack.constrain(ConfigurationLimit(robot, gain=0.5, name="qlim"))
+    stack.constrain(VelocityLimit(robot, name="vlim"))
+    return stack
+
+
+@pytest.fixture(scope="module")
+def controllers(robot):
+    """(fused, ordinary) controllers of the same one-QP Panda stack."""
+    fused = wbc.Controller(robot, panda_stack(robot), dt=DT)
+    ordinary = wbc.Controller(robot, panda_stack(robot), dt=DT, fused=False)
+    for ctrl in (fused, ordinary):
+        ctrl.set_references(posture=Q0, ee=robot.frame_pose(Q0, "ee"))
+    return fused, ordinary
+
+
+def test_daqp_controllers_are_fused_by_default_and_agree_with_the_ordinary_path(robot,
+                                                                              controllers):
+    fused, ordinary = controllers
+    assert fused.fused and fused.fused_reason is None
+    assert not ordinary.fused and "fused=False" in ordinary.fused_reason
+    target = robot.frame_pose(Q0, "ee").copy()
+    target[:3, 3] += [0.1, -0.15, 0.1]
+    q = Q0.copy()
+    for k in range(200):  # velocity limits active at first, then converging
+        refs = {"ee": target} if k == 0 else {}
+        v = fused.step(q, **refs).copy()
+        np.testing.assert_allclose(v, ordinary.step(q, **refs), atol=1e-9)
+        assert fused.last_solution.ok and fused.last_solution.fallback is None
+        q = q + DT * v
+    assert fused.workspace.fallback_solves == 0
+    assert np.linalg.norm(robot.frame_pose(q, "ee")[:3, 3] - target[:3, 3]) < 0.05
+
+
+def test_multi_level_and_other_backends_keep_todays_path(robot):
+    cascade = wbc.Controller(robot, panda_stack(robot, levels=2), dt=DT, jit=False)
+    assert not cascade.fused and "2 QPs" in cascade.fused_reason
+    with pytest.raises(wbc.WbcError, match="cannot be fused"):
+        wbc.Controller(robot, panda_stack(robot, levels=2), dt=DT, fused=True, jit=False)
+    quadprog = wbc.Controller(robot, panda_stack(robot), backend="quadprog", dt=DT, jit=False)
+    assert not quadprog.fused and "quadprog" in quadprog.fused_reason
+    with pytest.raises(wbc.WbcError, match="fused must be"):
+        wbc.Controller(robot, panda_stack(robot), dt=DT, fused="yes")
+
+
+def test_without_a_compiler_one_warning_and_todays_path(robot, monkeypatch):
+    monkeypatch.setenv("CC", "/nonexistent/cc")
+    with pytest.warns(RuntimeWarning, match="no C compiler"):
+        ctrl = wbc.Controller(robot, panda_stack(robot), dt=DT)
+    assert not ctrl.fused and "compiler" in ctrl.fused_reason
+    ctrl.set_references(posture=Q0, ee=robot.frame_pose(Q0, "ee"))
+    assert ctrl.step(Q0 + 0.01).shape == (robot.nv,) and ctrl.last_solution.ok
+
+
+@pytest.mark.parametrize("policy", ["hold", "last", "decelerate"])
+def test_fallbacks_after_a_failed_fused_tick(robot, controllers, policy):
+    fused = controllers[0]
+    fused.fallback = policy
+    try:
+        fused.set_references(ee=robot.frame_pose(Q0, "ee"))
+        previous = fused.step(Q0 + 0.05).copy()
+        q = Q0.copy()
+        q[0] = robot.limits.q_upper[0] + 0.1  # position bound v < −10, velocity bound ≥ −2.2
+        command = fused.step(q)
+        solution = fused.last_solution
+        assert solution.status is wbc.Status.INFEASIBLE and solution.fallback == policy
+        expected = {"hold": np.zeros(robot.nv), "last": previous,
+                    "decelerate": None}[policy]
+        if expected is not None:
+            np.testing.assert_array_equal(command, expected)
+        else:  # the previous command halved, within this tick's (crossed: not applied) bounds
+            np.testing.assert_allclose(command, 0.5 * previous)
+        assert fused.step(Q0).shape == (robot.nv,) and fused.last_solution.ok
+    finally:
+        fused.fallback = "hold"
+
+
+def test_bad_input_is_refused_before_any_write(controllers):
+    fused = controllers[0]
+    fused.step(Q0)
+    p = fused.workspace.p.copy()
+    bad = Q0.copy()
+    bad[3] = np.nan
+    with pytest.raises(wbc.NonFiniteError, match="q contains NaN"):
+        fused.step(bad)
+    with pytest.raises(wbc.ShapeError, match=r"q must have shape \(7,\)"):
+        fused.step(Q0[:6])
+    with pytest.raises(wbc.ShapeError, match="ee"):
+        fused.step(Q0 + 0.1, ee=np.eye(3))
+    np.testing.assert_array_equal(fused.workspace.p, p)
+
+
+def test_a_fused_tick_allocates_nothing_in_steady_state(robot, controllers):
+    """The command and the solution are buffers reused every tick; over 1000 ticks no memory
+    block stays allocated, and the peak stays at the level of the loop's own bookkeeping. The
+    ordinary path, for contrast, makes new arrays and a new solution every tick."""
+    fused, ordinary = controllers
+    q = Q0 + 0.05
+    first = fused.step(q)
+    assert fused.step(q) is first and fused.last_solution is fused.last_solution
+    assert ordinary.step(q) is not ordinary.step(q)
+
+    def blocks_and_peak(ctrl):
+        for _ in range(10):  # warm caches
+            ctrl.step(q)
+        tracemalloc.start()
+        try:
+            before = tracemalloc.take_snapshot()
+            base, _ = tracemalloc.get_traced_memory()
+            tracemalloc.reset_peak()
+            for _ in range(1000):
+                ctrl.step(q)
+            _, peak = tracemalloc.get_traced_memory()
+            after = tracemalloc.take_snapshot()
+        finally:
+            tracemalloc.stop()
+        measuring = [tracemalloc.Filter(False, tracemalloc.__file__),
+                     tracemalloc.Filter(False, __file__)]
+        after, before = after.filter_traces(measuring), before.filter_traces(measuring)
+        grown = sum(max(stat.count_diff, 0) for stat in after.compare_to(before, "lineno"))
+        return grown, peak - base
+
+    grown, peak = blocks_and_peak(fused)
+    assert grown == 0
+    assert peak < 512  # bytes: no array, no solution object
+    _, ordinary_peak = blocks_and_peak(ordinary)
+    assert ordinary_peak > peak + 512  # the check can tell
+
+
+def test_the_generated_daqp_code_is_patched_or_refused():
+    """CasADi's generated daqp code leaves the QP's success flag unset when daqp's setup fails
+    (see :func:`wbc.fused.initialise_success`): the patch sets it, and code of another shape
+    is refused rather than compiled."""
+    from wbc.fused import initialise_success
+
+    source = "int f(void) {\n  flag = setup_daqp(a, b, c);\n  if (flag<0) return 1;\n}\n"
+    assert "d_qp->success = 0; return 1;" in initialise_success(source)
+    with pytest.raises(RuntimeError, match="has changed"):
+        initialise_success(source.replace("if (flag<0) return 1;", "if (flag < 0) return 2;"))

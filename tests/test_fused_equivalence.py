@@ -1,0 +1,56 @@
+"""The equivalence suite on the fused path (:mod:`wbc.fused`).
+
+The one-QP tests of ``test_equivalence.py`` (damped and weighted damped pseudo-inverses:
+rank-deficient and conflicting instances, pinned variables) run again with every daqp
+workspace replaced by a :class:`~wbc.fused.FusedWorkspace`, to the same tolerances and KKT
+checks. Cascades of several QPs are not fused (see
+:mod:`wbc.fused`): their examples (ρ = 0 adds a minimum-norm level) keep the ordinary
+workspace, and each test asserts that the fused path answered some of its examples. (The
+other tests of the suite are cascades throughout; the fused path's active bounds, soft rows,
+infeasibility and fallbacks are tested in ``test_fused.py``.)
+
+The fused function is evaluated on CasADi's virtual machine here: hypothesis draws dozens of
+shapes and each would be a C compilation (≈ 0.5–1 s). ``test_fused.py`` checks on fixed
+instances that the compiled C gives the same numbers as this very function.
+"""
+
+from __future__ import annotations
+
+import pytest
+import test_equivalence as eq
+
+import wbc
+from wbc.fused import FusedWorkspace, why_not_fused
+
+FUSED_ANSWERED = []  # one entry per fused solve of the running test
+
+
+@pytest.fixture(autouse=True)
+def fused_workspaces(monkeypatch, request):
+    if request.node.callspec.params["backend"] != "daqp":
+        pytest.skip("the fused path solves with daqp")
+    ordinary = wbc.Stack.workspace
+
+    def workspace(stack, backend="daqp", profile="default", jit=False, **options):
+        compiled = stack.compile()
+        if why_not_fused(compiled, options) is not None:
+            return ordinary(stack, backend, profile, jit, **options)
+        ws = FusedWorkspace(compiled, profile, compile=False, **options)
+        fused_solve = ws.solve
+
+        def solve():
+            solution = fused_solve()
+            FUSED_ANSWERED.append(ws.fallback_solves == 0)
+            return solution
+
+        ws.solve = solve
+        return ws
+
+    monkeypatch.setattr(wbc.Stack, "workspace", workspace)
+    FUSED_ANSWERED.clear()
+    yield
+    assert any(FUSED_ANSWERED), "no example of this test took the fused path"
+
+
+test_damped_pinv_equals_one_level_qp = eq.test_damped_pinv_equals_one_level_qp
+test_weighted_damped_pinv_equals_one_level_qp = eq.test_weighted_damped_pinv_equals_one_level_qp
