@@ -82,3 +82,6 @@ __all__ = [
     "ur5",
     "urdf_path",
 ]
+from .steerable_control import SteerableController, SteerableDrive  # noqa: E402
+
+__all__ += ["SteerableController", "SteerableDrive"]

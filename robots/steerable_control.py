@@ -61,7 +61,6 @@ import wbc
 from wbc.errors import InvalidValueError
 from wbc.qp import Status
 from wbc.sim.actuation import Actuation
-from wbc.tasks import LinearConstraint, LinearTask
 
 from .planar_base import as_vector, require_positive
 from .steerable import SteerableBase
@@ -195,10 +194,17 @@ class SteerableController:
         # priority 0: acceleration cones, soft (least violation); priority 1: track X_ref;
         # hard at both: rate cones.
         stack = wbc.Stack(wbc.Variables(icr=2))
-        rows = np.zeros((2 * n, 2)), np.full(2 * n, -np.inf), np.zeros(2 * n)
-        stack.add(LinearConstraint(*rows, name="steer_acceleration"), priority=0)
-        stack.add(LinearTask(np.zeros((3, 2)), np.zeros(3), name="icr_ref"), priority=1)
-        stack.constrain(LinearConstraint(*rows, name="steer_rate"))
+        u = stack.variables.symbol
+        cones = {}
+        for name in ("steer_acceleration", "steer_rate"):
+            C = stack.parameter(f"{name}.C", (2 * n, 2), np.zeros((2 * n, 2)))
+            upper = stack.parameter(f"{name}.upper", 2 * n, np.zeros(2 * n))
+            cones[name] = wbc.Inequality(C @ u, -np.inf, upper, name)
+        stack.add(cones["steer_acceleration"], priority=0)
+        T = stack.parameter("icr_ref.A", (3, 2), np.zeros((3, 2)))
+        stack.add(wbc.Cost(T @ u, stack.parameter("icr_ref.b", 3, np.zeros(3)), 1.0, "icr_ref"),
+                  priority=1)
+        stack.constrain(cones["steer_rate"])
         self.stack = stack
         self.workspace = stack.workspace(backend, profile)
         view = self.workspace.view
