@@ -1,34 +1,78 @@
 """Every verb of the ``wbc`` command line answers a user's mistake with a one-line message and an
-honest exit code (2: bad argument, 1: failure at run time), in a real subprocess, without a
+honest exit code (2: bad argument, 1: failure at run time), in a process of its own, without a
 traceback unless ``--debug`` asks for one.
 
-Every case is its own process; they all start at once (a module fixture) because each spends
-most of its second importing numpy, CasADi and pinocchio.
+Each case runs in a child process forked from this one after the verbs' modules are imported
+(what the console script does after its imports: ``raise SystemExit(main(argv))``), so that a
+case costs milliseconds instead of a second of importing numpy, CasADi and pinocchio; a few
+cases also run in a fresh interpreter and must give the same answer.
 """
 
 from __future__ import annotations
 
+import importlib
 import importlib.metadata
 import importlib.util
+import os
 import shutil
 import subprocess
 import sys
+import tempfile
+import traceback
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import pytest
 
-from wbc.experiments.cli import COMMANDS, STUDIES
+from wbc.experiments.cli import COMMANDS, STUDIES, main
 
 
-def run_wbc(args: tuple[str, ...], hide: str | None = None) -> subprocess.CompletedProcess:
-    """Run ``wbc ARGS`` in a fresh interpreter; ``hide`` makes a package unimportable there."""
+@dataclass
+class Done:
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def forked_wbc(args: tuple[str, ...], hide: str | None = None) -> Done:
+    """Run ``wbc ARGS`` in a forked child; ``hide`` makes a package unimportable there."""
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        pid = os.fork()
+        if pid == 0:  # the child: never returns into pytest
+            code = 1
+            try:
+                os.dup2(out.fileno(), 1)
+                os.dup2(err.fileno(), 2)
+                sys.stdout, sys.stderr = open(1, "w", closefd=False), open(2, "w", closefd=False)
+                if hide:
+                    sys.modules[hide] = None
+                try:
+                    code = main(list(args))
+                except SystemExit as exit_:  # as the interpreter treats it
+                    code = exit_.code if isinstance(exit_.code, int) else int(bool(exit_.code))
+                except BaseException:  # an uncaught exception: traceback, exit 1
+                    traceback.print_exc()
+                    code = 1
+                sys.stdout.flush()
+                sys.stderr.flush()
+            finally:
+                os._exit(code)
+        _, status = os.waitpid(pid, 0)
+        out.seek(0)
+        err.seek(0)
+        return Done(os.waitstatus_to_exitcode(status), out.read(), err.read())
+
+
+def fresh_wbc(args: tuple[str, ...], hide: str | None = None) -> Done:
+    """Run ``wbc ARGS`` in a fresh interpreter (as the console script does)."""
     code = "import sys\n"
     if hide:
         code += f"sys.modules[{hide!r}] = None\n"
     code += ("from wbc.experiments.cli import main\n"
              f"raise SystemExit(main({list(args)!r}))\n")
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120)
+    return Done(done.returncode, done.stdout, done.stderr)
 
 
 BAD_ARGUMENTS = [
@@ -62,10 +106,11 @@ CASES = ([(tuple(args), None) for args, _ in BAD_ARGUMENTS]
 
 @pytest.fixture(scope="module")
 def ran() -> dict:
-    """``(args, hide) -> CompletedProcess`` for every case, run concurrently."""
-    with ThreadPoolExecutor(max_workers=4) as pool:
-        done = list(pool.map(lambda case: run_wbc(*case), CASES))
-    return dict(zip(CASES, done, strict=True))
+    """``(args, hide) -> Done`` for every case, each in a forked child."""
+    for module in [*(m for m, _ in COMMANDS.values()),
+                   *(f"wbc.experiments.{name}" for name in AVAILABLE_STUDIES)]:
+        importlib.import_module(module)  # imported once, here, not in every child
+    return {case: forked_wbc(*case) for case in CASES}
 
 
 @pytest.fixture
@@ -126,3 +171,18 @@ def test_every_verb_help_shows_its_wbc_usage(wbc, verb):
     done = wbc(verb, "--help")
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith(f"usage: wbc {verb}")
+
+
+FRESH = [(("demo", "--ticks", "0"), None), (("pink", "--help"), None),
+         (("mink", "--ticks", "5"), "mink"), (("--debug", "mink", "--ticks", "5"), "mink")]
+
+
+def test_a_fresh_interpreter_gives_the_same_answers(ran):
+    with ThreadPoolExecutor(max_workers=len(FRESH)) as pool:
+        fresh = list(pool.map(lambda case: fresh_wbc(*case), FRESH))
+    for case, done in zip(FRESH, fresh, strict=True):
+        forked = ran[case]
+        assert done.returncode == forked.returncode, (case, done.stderr)
+        assert done.stdout == forked.stdout, case
+        first_line = forked.stderr.splitlines()[0] if forked.stderr else ""
+        assert done.stderr.startswith(first_line), case
