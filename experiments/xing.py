@@ -205,8 +205,8 @@ class ClosedFormPlanner:
         drift = registry.get("Jdot_v[ee]").symbolic()(q, v)
         J_r, drift_r, xdd = cartesian_command(pose, J, drift, v, target, target_velocity,
                                               target_acceleration, kd, kp, setup.rows)
-        outputs = [ca.densify(o) for o in (J_r, drift_r, xdd,
-                                           *arm_jacobian_derivatives(robot)(q))]
+        outputs = [ca.densify(o) for o in (J_r, drift_r, xdd, *arm_jacobian_derivatives(robot)(
+            q, v[self.n_base:]))]
         # the gains are inputs, so that every setup of one task size shares one C library
         function = ca.Function("xing_model", [q, v, target, target_velocity,
                                               target_acceleration, kd, kp], outputs)
@@ -237,15 +237,15 @@ class ClosedFormPlanner:
                                                self.setup.kp), strict=True):
             array[:] = np.ravel(value)  # column-major: the transpose's rows
         self._evaluate()
-        J, drift, xdd, J_m, dJ, ddJ = self._outputs
-        dJ = dJ.reshape(m, 3, m).transpose(2, 1, 0)
-        ddJ = ddJ.reshape(m, m, 3, m).transpose(3, 0, 2, 1)
+        J, drift, xdd, J_m, dJ, dJ_dot = self._outputs
+        dJ = dJ.reshape(m, 3, m).transpose(2, 1, 0)  # rows i + 3j -> [k, i, j]
+        dJ_dot = dJ_dot.reshape(m, 3, m).transpose(2, 1, 0)
         v_arm = v[self.n_base:]
-        gradient = ref.manipulability_gradient(J_m, dJ)
-        hessian = ref.manipulability_hessian(J_m, dJ, ddJ)
         qdd_sa = np.zeros(self.nv)
         qdd_sa[self.n_base:] = ref.manipulability_acceleration(
-            gradient, hessian @ v_arm, v_arm, self.setup.gamma1, self.setup.gamma2)
+            ref.manipulability_gradient(J_m, dJ),
+            ref.manipulability_hessian_product(J_m, dJ, dJ_dot, v_arm), v_arm,
+            self.setup.gamma1, self.setup.gamma2)
         sigma = float(np.linalg.svd(J_m, compute_uv=False)[-1])
         return J.copy(), drift[:, 0].copy(), xdd[:, 0].copy(), qdd_sa, sigma
 
@@ -689,7 +689,7 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
         for label, setup in (("without", NO_AVOIDANCE), ("no_tertiary", NO_TERTIARY),
                              ("with", POSITION))}
     timing, split = {}, {}
-    timing_seconds = 2.0 if quick else 10.0
+    timing_seconds = 2.0 if quick else 6.0
     for name in available_backends():
         try:
             s = simulate(robot, amp_controller(robot, POSITION, name, jit=jit),

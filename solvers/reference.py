@@ -674,8 +674,8 @@ def sns_acceleration(
     if return_info:
         return q, s, SNSInfo(status, tuple(sat), it)
     return q, s
-from .reference_xing import AMPInfo, amp, auxiliary_projector, base_transition, manipulability_acceleration, manipulability_gradient, manipulability_hessian, scaling_factor, traditional  # noqa: E402, E501, I001
+from .reference_xing import AMPInfo, amp, auxiliary_projector, base_transition, manipulability_acceleration, manipulability_gradient, manipulability_hessian, manipulability_hessian_product, scaling_factor, traditional  # noqa: E402, E501, I001
 
-__all__ += ["AMPInfo", "amp", "auxiliary_projector", "base_transition", "manipulability_acceleration", "manipulability_gradient", "manipulability_hessian", "scaling_factor", "traditional"]  # noqa: E501
+__all__ += ["AMPInfo", "amp", "auxiliary_projector", "base_transition", "manipulability_acceleration", "manipulability_gradient", "manipulability_hessian", "manipulability_hessian_product", "scaling_factor", "traditional"]  # noqa: E501
 from .reference_sorour import arm_compensation, sharing_mobility, task_sharing_factor, task_sharing_velocity  # noqa: E402, E501, I001
 __all__ += ["arm_compensation", "sharing_mobility", "task_sharing_factor", "task_sharing_velocity"]  # noqa: E501

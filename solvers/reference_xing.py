@@ -8,7 +8,8 @@ state; the QP form of the same method is ``wbc.experiments.xing.amp_stack``.
 * :func:`traditional` — the paper's comparison planner, ``q̈ = J⁺(ẍ − J̇q̇) + (I − J⁺J) q̈_sa``.
 * :func:`scaling_factor` — Fig. 4 (the factor α of the task or β of the tertiary objective).
 * :func:`auxiliary_projector` — eq. (10), ``P_A = [I − ((I − S) P_N)⁺] P_N``.
-* :func:`manipulability_gradient`, :func:`manipulability_hessian` — appendices A and B, for
+* :func:`manipulability_gradient`, :func:`manipulability_hessian` (and
+  :func:`manipulability_hessian_product`, ``∇²H d``) — appendices A and B, for
   ``H = det(J_m J_mᵀ)``; :func:`manipulability_acceleration` — eqs. (12)–(13).
 * :func:`base_transition` — eq. (15), the base stopping at its maximal deceleration.
 
@@ -55,6 +56,7 @@ __all__ = [
     "manipulability_acceleration",
     "manipulability_gradient",
     "manipulability_hessian",
+    "manipulability_hessian_product",
     "scaling_factor",
     "traditional",
 ]
@@ -149,29 +151,52 @@ def manipulability_gradient(J, dJ) -> np.ndarray:
     return np.linalg.det(psi) * np.trace(M, axis1=1, axis2=2)
 
 
+def manipulability_hessian_product(J, dJ, dJ_dot, direction) -> np.ndarray:
+    """Appendix B, eqs. (18)–(20), applied to a direction ``d``: ``∇²H d``, with
+    ``(∇²H)_pq = det Ψ [tr(Ψ⁻¹∂_pΨ) tr(Ψ⁻¹∂_qΨ) − tr(Ψ⁻¹∂_qΨ Ψ⁻¹∂_pΨ) + tr(Ψ⁻¹ ∂_pqΨ)]``
+    and ``∂_pqΨ = ∂_pqJ Jᵀ + ∂_qJ ∂_pJᵀ + ∂_pJ ∂_qJᵀ + J ∂_pqJᵀ``. Contracted with ``d``,
+    ``Σ_q ∂_pqΨ d_q = ∂_p Ψ̇`` for ``Ψ̇ = J̇Jᵀ + JJ̇ᵀ``, ``J̇ = Σ_q ∂_qJ d_q``: so only
+    ``∂_p J̇`` is needed, not the whole second derivative of ``J`` (eq. 13 needs
+    ``∇²H q̇_m``).
+
+    Args:
+        J, dJ: as in :func:`manipulability_gradient`.
+        dJ_dot: ``∂J̇/∂q_p = Σ_q ∂²J_m/∂q_p∂q_q d_q`` stacked on ``p``, shape (m, r, m).
+        direction: ``d`` (m,), e.g. ``q̇_m`` [rad/s].
+
+    Returns:
+        ``∇²H d`` (m,).
+    """
+    J, dJ, psi, psi_inv, M = _psi_terms(J, dJ)
+    m, r = J.shape[1], J.shape[0]
+    dJ_dot = np.asarray(dJ_dot, dtype=float)
+    if dJ_dot.shape != (m, r, m):
+        raise ShapeError(f"dJ_dot must have shape ({m}, {r}, {m}), got {dJ_dot.shape}")
+    d = _vector(direction, m, "direction")
+    traces = np.trace(M, axis1=1, axis2=2)
+    J_dot = np.tensordot(d, dJ, axes=1)
+    d_psi_dot = (dJ_dot @ J.T + J_dot @ dJ.transpose(0, 2, 1) + dJ @ J_dot.T
+                 + J @ dJ_dot.transpose(0, 2, 1))  # ∂_p Ψ̇, (m, r, r)
+    cross = np.einsum("qij,pji->pq", M, M) @ d  # Σ_q tr(Ψ⁻¹∂_qΨ Ψ⁻¹∂_pΨ) d_q
+    second = np.einsum("ij,pji->p", psi_inv, d_psi_dot)
+    return np.linalg.det(psi) * (traces * (traces @ d) - cross + second)
+
+
 def manipulability_hessian(J, dJ, ddJ) -> np.ndarray:
-    """Appendix B, eqs. (18)–(20): ``∂²H/∂q_p∂q_q = det Ψ [tr(Ψ⁻¹∂_pΨ) tr(Ψ⁻¹∂_qΨ) −
-    tr(Ψ⁻¹∂_qΨ Ψ⁻¹∂_pΨ) + tr(Ψ⁻¹ ∂_pqΨ)]`` with ``∂_pqΨ = ∂_pqJ Jᵀ + ∂_qJ ∂_pJᵀ + ∂_pJ ∂_qJᵀ
-    + J ∂_pqJᵀ``.
+    """Appendix B: the Hessian ``∇²H`` (m, m), column by column with
+    :func:`manipulability_hessian_product` (``d = e_k``, ``∂J̇/∂q_p = ∂²J/∂q_p∂q_k``).
 
     Args:
         J, dJ: as in :func:`manipulability_gradient`.
         ddJ: ``∂²J_m/∂q_p∂q_q``, shape (m, m, r, m).
-
-    Returns:
-        The Hessian (m, m).
     """
-    J, dJ, psi, psi_inv, M = _psi_terms(J, dJ)
-    m, r = J.shape[1], J.shape[0]
+    J = _matrix(J, "J_m")
+    r, m = J.shape
     ddJ = np.asarray(ddJ, dtype=float)
     if ddJ.shape != (m, m, r, m):
         raise ShapeError(f"ddJ must have shape ({m}, {m}, {r}, {m}), got {ddJ.shape}")
-    traces = np.trace(M, axis1=1, axis2=2)
-    cross = np.einsum("qij,pji->pq", M, M)  # tr(Ψ⁻¹∂_qΨ Ψ⁻¹∂_pΨ)
-    dd_psi = (ddJ @ J.T + np.einsum("qik,pjk->pqij", dJ, dJ)
-              + np.einsum("pik,qjk->pqij", dJ, dJ) + J @ ddJ.transpose(0, 1, 3, 2))
-    second = np.einsum("ij,pqji->pq", psi_inv, dd_psi)
-    return np.linalg.det(psi) * (np.outer(traces, traces) - cross + second)
+    return np.column_stack([manipulability_hessian_product(J, dJ, ddJ[:, k], np.eye(m)[k])
+                            for k in range(m)])
 
 
 def manipulability_acceleration(gradient, hessian_qd, qd_arm, gamma1: float = 5.0,

@@ -14,8 +14,8 @@ a pull of ``q̇_m`` towards it), zero on the base. Everything here is CasADi, de
 robot's symbolic Jacobian (``robot.quantities``' ``"J[<frame>]"``): :class:`ManipulabilityTask`
 puts ``q̈_sa`` in a compiled stack (gradient by reverse mode, ``∇²H q̇`` by one forward sweep,
 from the quantities ``"q"`` and ``"v"``), and :func:`arm_jacobian_derivatives` gives ``J_m``,
-``∂J_m/∂q`` and ``∂²J_m/∂q²`` for the appendix's closed forms
-(:func:`wbc.solvers.reference.manipulability_gradient` / ``manipulability_hessian``).
+``∂J_m/∂q`` and ``∂J̇_m/∂q`` for the appendix's closed forms
+(:func:`wbc.solvers.reference.manipulability_gradient` / ``manipulability_hessian_product``).
 """
 
 from __future__ import annotations
@@ -69,16 +69,18 @@ def smallest_singular_value(J_m):
 
 
 def arm_jacobian_derivatives(robot, frame: str = "ee", joints: int | None = None) -> ca.Function:
-    """``q -> (J_m, dJ, ddJ)``: ``J_m`` (3, m), ``dJ`` (3·m, m) with ``dJ[i + 3j, k] =
-    ∂J_m[i, j]/∂q_k`` and ``ddJ`` (3·m·m, m) its Jacobian in turn (CasADi's column-major
-    ``vec``), ``q_k`` the arm joints."""
+    """``(q, qd_arm) -> (J_m, dJ, dJ_dot)``: ``J_m`` (3, m); ``dJ`` (3·m, m) with
+    ``dJ[i + 3j, k] = ∂J_m[i, j]/∂q_k`` (CasADi's column-major ``vec``); ``dJ_dot`` the same
+    for ``J̇_m = Σ_k ∂J_m/∂q_k q̇_k``, i.e. the second derivatives of ``J_m`` contracted with
+    ``qd_arm`` (``q_k`` the arm joints). With ``qd_arm = e_k`` it is ``∂²J_m/∂q ∂q_k``."""
     n_arm = arm_size(robot, joints)
     q, J_m = arm_jacobian(robot, frame, joints)
     q_arm = q[int(robot.nq) - n_arm:]
+    qd_arm = ca.SX.sym("qd_arm", n_arm)
     dJ = ca.jacobian(ca.vec(J_m), q_arm)
-    ddJ = ca.jacobian(ca.vec(dJ), q_arm)
-    return ca.Function("arm_jacobian_derivatives", [q], [J_m, dJ, ddJ], ["q"],
-                       ["J_m", "dJ", "ddJ"])
+    dJ_dot = ca.jacobian(ca.vec(ca.jtimes(J_m, q_arm, qd_arm)), q_arm)
+    return ca.Function("arm_jacobian_derivatives", [q, qd_arm], [J_m, dJ, dJ_dot],
+                       ["q", "qd_arm"], ["J_m", "dJ", "dJ_dot"])
 
 
 class ManipulabilityTask(Task):

@@ -31,10 +31,16 @@ def derivatives(robot):
 
 
 def _arm_terms(derivatives, q):
+    """``(J_m, ∂J_m/∂q_k (m, 3, m), ∂²J_m/∂q_p∂q_q (m, m, 3, m))``, the last from the
+    contracted derivative with unit directions."""
     m = 7
-    J, dJ, ddJ = (np.array(o) for o in derivatives(q))
-    return (J, dJ.reshape(m, 3, m).transpose(2, 1, 0),
-            ddJ.reshape(m, m, 3, m).transpose(3, 0, 2, 1))
+
+    def unvec(a):  # rows i + 3j -> [k, i, j]
+        return np.array(a).reshape(m, 3, m).transpose(2, 1, 0)
+
+    J, dJ, _ = derivatives(q, np.zeros(m))
+    ddJ = np.stack([unvec(derivatives(q, np.eye(m)[k])[2]) for k in range(m)], axis=1)
+    return np.array(J), unvec(dJ), ddJ
 
 
 def _H(robot, q):
@@ -88,9 +94,12 @@ def test_compiled_manipulability_acceleration_is_eq_13_of_the_appendix(robot, de
     for q, rng in _states(robot, 5, seed=1):
         v = rng.uniform(-1, 1, 10)
         J, dJ, ddJ = _arm_terms(derivatives, q)
-        expected = ref.manipulability_acceleration(
-            ref.manipulability_gradient(J, dJ),
-            ref.manipulability_hessian(J, dJ, ddJ) @ v[3:], v[3:], 5.0, 0.5)
+        hessian_qd = ref.manipulability_hessian(J, dJ, ddJ) @ v[3:]
+        dJ_dot = np.array(derivatives(q, v[3:])[2]).reshape(7, 3, 7).transpose(2, 1, 0)
+        np.testing.assert_allclose(ref.manipulability_hessian_product(J, dJ, dJ_dot, v[3:]),
+                                   hessian_qd, atol=1e-12 * (1 + np.abs(hessian_qd).max()))
+        expected = ref.manipulability_acceleration(ref.manipulability_gradient(J, dJ),
+                                                   hessian_qd, v[3:], 5.0, 0.5)
         got = np.array(target(q, v)).ravel()
         assert np.all(got[:3] == 0)
         np.testing.assert_allclose(got[3:], expected, atol=1e-12 * (1 + np.abs(expected).max()))
