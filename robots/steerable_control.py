@@ -32,13 +32,16 @@ The tick (:meth:`SteerableController.step`), for a desired twist ``ξ*``:
    ``T`` an orthonormal basis of the tangent plane at ``X`` and ``u ∈ R²`` the decision,
    minimising ``||X + T u − X_ref||²`` under two linear constraints per steer joint: ``w_i``
    stays in the cone between the directions ``β_i + π/2 + δ_lo,i`` and ``β_i + π/2 + δ_hi,i``
-   where ``[δ_lo, δ_hi] = t_s · [max(−β̇max, β̇_i − β̈max t_s), min(β̇max, β̇_i + β̈max t_s)]``
    (the paper's "two straight lines per joint"; cones are invariant to scaling ``X``, so the
-   constraints are exact, not linearised). If the acceleration bounds make the QP infeasible
-   (several wheels forced to keep turning in incompatible ways) it is solved again with the
-   rate limits only (always feasible: ``u = 0``) and the tick is counted in
-   ``acceleration_relaxed``.
-4. Steering angles of ``X_next`` (nearest representative modulo π), ``β̇_ref`` by numerical
+   constraints are exact, not linearised). The rate cones (``δ = ±β̇max t_s``) are hard. The
+   acceleration cones (``[δ_lo, δ_hi] = t_s · [β̇_i − β̈max t_s, β̇_i + β̈max t_s]``) are soft,
+   at a priority above the tracking: the four wheels share one ICR (two degrees of freedom for
+   eight cones), and when they cannot all be kept the least violation is taken (the tick is
+   reported: ``SteerStep.relaxed``, ``acceleration_relaxed``). Each wheel's cone is the half
+   facing the reference ICR, so the ICR may cross a hip; if that is infeasible, the half of
+   the current ICR (``u = 0`` is then feasible).
+4. Steering angles of ``X_next`` (nearest representative modulo π; a wheel whose hip is the
+   ICR brakes its steering within the acceleration limit), ``β̇_ref`` by numerical
    differentiation.
 5. Drive controller: ``ξ_init = ξ̂ + t_s K_p (ξ* − ξ̂)`` (one Euler step of
    ``ξ̈ = K_p (ξ* − ξ̂)``), projected onto the null space of the next sample's lateral rows —
@@ -141,7 +144,8 @@ class SteerStep:
         route: ``"direct"``, ``"complementary"`` or ``"none"`` (zero desired twist: the ICR is
             held, the steering decelerates).
         qp_status: status of the ICR QP (``"solved"``, or the failure).
-        relaxed: whether the acceleration limits had to be dropped this tick.
+        relaxed: whether a steer acceleration exceeds ``β̈max`` this tick (the soft acceleration
+            cones could not all be kept).
         qp_s: wall time of the ICR QP [s].
     """
 
@@ -237,11 +241,20 @@ class SteerableController:
             route = "complementary" if target[2] * x[2] < 0.0 else "direct"
             x_ref = x + self.icr_gain * self.dt * (target - x)
         t0 = time.perf_counter()
-        x_next, status, relaxed = self._next_icr(x, x_ref)
+        x_next, status = self._next_icr(x, x_ref)
         qp_s = time.perf_counter() - t0
         beta = steering_of_icr(self.hips, x_next, self.steering)
+        # A wheel whose hip is the ICR may take any angle (its hip does not move): it brakes
+        # its steering as fast as the acceleration limit allows.
+        at_icr = np.linalg.norm(x_next[:2][None, :] - self.hips * x_next[2], axis=1) < 1e-9
+        if at_icr.any():
+            braked = np.clip(0.0, self.steer_rates - self.steer_acceleration * self.dt,
+                             self.steer_rates + self.steer_acceleration * self.dt)
+            beta[at_icr] = (self.steering + self.dt * braked)[at_icr]
         rates = (beta - self.steering) / self.dt
         accelerations = (rates - self.steer_rates) / self.dt
+        # 1e-4 relative: the QP meets its cones to its tolerance
+        relaxed = bool(np.any(np.abs(accelerations) > self.steer_acceleration * (1 + 1e-4)))
         # drive controller: one Euler step of K_p (ξ* − ξ̂), projected on the next ICR's twist
         initial = self.twist + self.dt * self.drive_gain * (desired_twist - self.twist)
         direction = np.array([x_next[1], -x_next[0], x_next[2]])
@@ -253,12 +266,11 @@ class SteerableController:
         return SteerStep(feasible.copy(), beta.copy(), rates.copy(), accelerations, wheels,
                          x_next.copy(), route, status, relaxed, qp_s)
 
-    def _next_icr(self, x: np.ndarray, x_ref: np.ndarray) -> tuple[np.ndarray, str, bool]:
-        """Solve the ICR QP; returns ``(X_next, status, acceleration limits relaxed)``.
+    def _next_icr(self, x: np.ndarray, x_ref: np.ndarray) -> tuple[np.ndarray, str]:
+        """Solve the ICR QP; returns ``(X_next, status)`` (``X`` itself if it failed).
 
-        Tries, in order: the rate and acceleration limits with each ``w_i`` kept in the half
-        of its cone that faces the reference (so the ICR may cross a hip); the rate limits only;
-        the rate limits with the half-cones of the current ICR (feasible: ``u = 0``).
+        Tries the half-cones facing the reference (so the ICR may cross a hip), then those of the
+        current ICR (feasible: ``u = 0``).
         """
         T = _tangent_basis(x)
         self._A[...] = T
@@ -274,12 +286,8 @@ class SteerableController:
             solution = self.workspace.solve()
             if solution.status is Status.SOLVED:
                 x_next = x + T @ solution.x
-                x_next /= np.linalg.norm(x_next)
-                beta = steering_of_icr(self.hips, x_next, self.steering)
-                accel = (beta - self.steering - self.steer_rates * dt) / dt**2
-                relaxed = bool(np.any(np.abs(accel) > self.steer_acceleration * (1 + 1e-6)))
-                return x_next, "solved", relaxed
-        return x, solution.status.value, True
+                return x_next / np.linalg.norm(x_next), "solved"
+        return x, solution.status.value
 
     def _cones(self, name, x, facing, T, lo, hi) -> None:
         """Rows ``C u <= upper`` of constraint ``name``: ``w_i(X + T u)`` between the directions

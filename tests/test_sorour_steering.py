@@ -65,7 +65,7 @@ def test_steer_limits_hold_and_the_twist_is_feasible(seed):
         ticks += 1
         routes.add(step.route)
         assert np.abs(step.steer_rates).max() <= RATE * (1 + 1e-4)
-        over = np.abs(step.steer_accelerations).max() > ACCEL * (1 + 1e-6)
+        over = np.abs(step.steer_accelerations).max() > ACCEL * (1 + 1e-4)
         assert over <= step.relaxed  # no violation unless reported
         relaxed += step.relaxed
         np.testing.assert_allclose(lateral_rows(base.hips, step.steering) @ step.twist, 0.0,
