@@ -178,7 +178,8 @@ class FusedWorkspace(Workspace):
     def __init__(self, compiled: CompiledStack, profile: str = "default",
                  warm_start: bool = True, compile: bool = True, **options) -> None:
         super().__init__(compiled, "daqp", profile, warm_start, **options)
-        settings = dict(self._blocks[0].backend.options)  # the profile, resolved
+        # the profile, resolved (a registered daqp backend: a BackendBase, which has options)
+        settings = dict(self._blocks[0].backend.options)  # type: ignore[attr-defined]
         function = fused_function(compiled, settings)
         if compile:
             function = compiled_c(function, DEFAULT_FLAGS, daqp_link_arguments(),
@@ -187,19 +188,22 @@ class FusedWorkspace(Workspace):
         self.fallback_solves = 0  # ticks the generated daqp did not solve
         self._x = np.zeros(compiled.n)
         self._buffer, self._evaluate = function.buffer()
-        self._buffer.set_arg(0, memoryview(self.p))
-        self._buffer.set_res(0, memoryview(self._x))
+        # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res, and
+        # numpy's, for Python < 3.12, no buffer protocol of ndarray)
+        self._buffer.set_arg(0, memoryview(self.p))  # type: ignore[call-arg, arg-type]
+        self._buffer.set_res(0, memoryview(self._x))  # type: ignore[call-arg, arg-type]
         # Reading the call's return code through SWIG costs ≈ 0.8 µs; instead, "done" is set to
         # NaN before each call and only a solved call overwrites it (with the finite cost).
         done = np.zeros(1)
-        self._buffer.set_res(1, memoryview(done))
-        self._done = memoryview(done)  # items as Python floats: cheaper than numpy scalars
+        self._buffer.set_res(1, memoryview(done))  # type: ignore[call-arg, arg-type]
+        # items as Python floats: cheaper than numpy scalars
+        self._done = memoryview(done)  # type: ignore[arg-type]
         block = compiled.blocks[0]
         self._qp_result = QPResult(np.zeros(block.n_z), Status.SOLVED, np.zeros(block.m_total),
                                    np.zeros(block.n_z))
         for i, out in enumerate((self._qp_result.x, self._qp_result.y, self._qp_result.z), 2):
             if out.size:
-                self._buffer.set_res(i, memoryview(out))
+                self._buffer.set_res(i, memoryview(out))  # type: ignore[call-arg, arg-type]
         self._timings = Timings()
         self._solution = Solution(self._x, Status.SOLVED,
                                   [LevelResult(block.label, Status.SOLVED, self._x, 0)],
@@ -211,7 +215,7 @@ class FusedWorkspace(Workspace):
         if self._unset:
             raise WbcError(f"parameters never set: {sorted(self._unset)}")
         done = self._done
-        done[0] = math.nan
+        done[0] = math.nan  # type: ignore[call-overload]  # a view of float64: takes floats
         t0 = time.perf_counter()
         try:
             self._evaluate()
