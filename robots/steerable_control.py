@@ -197,7 +197,7 @@ class SteerableController:
         n = base.n_wheels
         # priority 0: acceleration cones, soft (least violation); priority 1: track X_ref;
         # hard at both: rate cones.
-        stack = wbc.Stack(wbc.Variables(icr=2))
+        stack = wbc.Stack(wbc.Variables(icr=2), min_norm=False)  # level 1 is strictly convex
         u = stack.variables.symbol
         cones = {}
         for name in ("steer_acceleration", "steer_rate"):
