@@ -7,7 +7,7 @@ A 10-variable decision vector (3 base + 7 arm velocities) with
 The stack is compiled once; each backend gets its own workspace (buffers + a live solver per
 level). Every tick only numbers change: ``ws.set(...)`` then ``ws.solve()``.
 
-Run:  python examples/compose_and_swap_backends.py [--ticks 200] [--backends daqp osqp ...]
+Run:  python examples/compose_and_swap_backends.py [--ticks 50] [--backends daqp osqp ...]
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def build_stack(rng: np.random.Generator) -> wbc.Stack:
 
 def main(argv: list[str] | None = None) -> dict[str, dict[str, float]]:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--ticks", type=int, default=200, help="random instances per backend")
+    parser.add_argument("--ticks", type=int, default=50, help="random instances per backend")
     parser.add_argument("--backends", nargs="+", default=available_backends(),
                         choices=available_backends(), help="default: every installed one")
     args = parser.parse_args(argv)
