@@ -59,7 +59,7 @@ def test_steer_limits_hold_and_the_twist_is_feasible(seed):
     base = mpo700()
     controller = SteerableController(base, dt=0.025, steer_rate=RATE, steer_acceleration=ACCEL)
     rng = np.random.default_rng(seed)
-    routes, relaxed, ticks, on_hip = set(), 0, 0, 0
+    routes, relaxed, ticks = set(), 0, 0
     for twist in reference_sequence(rng, base.hips, 12, 30):
         step = controller.step(twist)
         ticks += 1
@@ -71,8 +71,6 @@ def test_steer_limits_hold_and_the_twist_is_feasible(seed):
         np.testing.assert_allclose(lateral_rows(base.hips, step.steering) @ step.twist, 0.0,
                                    atol=1e-9)
         assert np.all(np.abs(step.twist) <= base.v_max + 1e-12)
-        hip_distance = np.linalg.norm(step.icr[:2][None] - base.hips * step.icr[2], axis=1)
-        on_hip += hip_distance.min() < 1e-2
     assert relaxed == controller.acceleration_relaxed
     assert relaxed <= 0.1 * ticks
     assert "complementary" in routes or "direct" in routes
@@ -104,6 +102,23 @@ def test_constant_twist_is_reached_and_reversal_goes_through_infinity():
     np.testing.assert_allclose(step.twist, [0.5, 0.0, -0.01], atol=1e-6)
     step = controller.step(np.zeros(3))
     assert step.route == "none"
+
+
+def test_icr_through_a_hip():
+    """Rotating about a wheel's hip, then about the opposite wheel's: the ICR reaches the hip
+    and crosses the deck; the rate limits hold throughout."""
+    base = mpo700()
+    controller = SteerableController(base, steer_rate=RATE, steer_acceleration=ACCEL)
+    for hip in (base.hips[0], base.hips[2]):
+        twist = 0.5 * np.array([hip[1], -hip[0], 1.0])  # ICR at the hip
+        for _ in range(300):
+            step = controller.step(twist)
+            assert np.abs(step.steer_rates).max() <= RATE * (1 + 1e-4)
+        distance = np.linalg.norm(step.icr[:2] - hip * step.icr[2]) / abs(step.icr[2])
+        assert distance < 1e-6
+        np.testing.assert_allclose(step.twist, twist, atol=1e-6)
+    # measured: 7 of 600 ticks over β̈max (the soft cones), reported as relaxed
+    assert controller.acceleration_relaxed <= 0.02 * 600
 
 
 def test_steering_of_icr_is_the_papers_formula_modulo_pi():
