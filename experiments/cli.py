@@ -1,5 +1,5 @@
 """The ``wbc`` command line: ``wbc list``, ``wbc demo``, ``wbc bench``, ``wbc pink``, ``wbc mink``,
-``wbc study NAME``.
+``wbc placo``, ``wbc study NAME``.
 
 Each sub-command forwards its remaining arguments to the ``main(argv)`` of its experiment
 module, so ``wbc bench --help`` shows that study's own options; ``wbc study NAME ...`` forwards
@@ -27,6 +27,7 @@ COMMANDS = {
               "backends"),
     "pink": ("wbc.experiments.vs_pink", "head-to-head with pink on the Panda"),
     "mink": ("wbc.experiments.vs_mink", "head-to-head with mink on the Panda"),
+    "placo": ("wbc.experiments.vs_placo", "head-to-head with placo (C++) on the Panda"),
     "reproduce": ("wbc.experiments.reproduce", "every paper study, bench and peers in one "
                   "report (REPORT.md)"),
 }

@@ -73,9 +73,10 @@ MODEL_NOTE = ("example-robot-data panda.urdf loaded by MuJoCo: visual/collision 
               "removed, finger joints fixed (closed), fusestatic=false")
 
 
-def panda_urdf_for_mujoco() -> str:
-    """The URDF text of wbc's Panda, made loadable by MuJoCo without meshes (see the module
-    docstring): kinematics, joint ranges and inertias kept, the fingers fixed."""
+def panda_urdf_without_meshes() -> ET.Element:
+    """The URDF of wbc's Panda without visual and collision elements (no meshes to find), the
+    fingers fixed: kinematics, joint ranges, velocity limits and inertias kept (also the
+    placo comparison's model, :mod:`wbc.experiments.vs_placo`)."""
     from wbc.robots.resources import urdf_path
 
     root = ET.parse(urdf_path("panda_description/urdf/panda.urdf")).getroot()
@@ -89,6 +90,13 @@ def panda_urdf_for_mujoco() -> str:
             for tag in ("limit", "axis", "mimic", "dynamics", "safety_controller"):
                 for element in joint.findall(tag):
                     joint.remove(element)
+    return root
+
+
+def panda_urdf_for_mujoco() -> str:
+    """The URDF text of wbc's Panda, made loadable by MuJoCo without meshes (see the module
+    docstring): :func:`panda_urdf_without_meshes` and MuJoCo's compiler options."""
+    root = panda_urdf_without_meshes()
     mujoco_block = ET.SubElement(root, "mujoco")
     ET.SubElement(mujoco_block, "compiler", discardvisual="true", fusestatic="false",
                   autolimits="true", angle="radian")

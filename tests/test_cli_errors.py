@@ -87,6 +87,7 @@ BAD_ARGUMENTS = [
     (["pink", "--backends", "nosuch"], "['nosuch'] not available"),
     (["mink", "--ticks", "many"], "invalid int value"),
     (["mink", "--backends", "cplex"], "['cplex'] not available"),
+    (["placo", "--ticks", "0"], "--ticks must be >= 1"),
     (["reproduce", "--bogus"], "unrecognized arguments: --bogus"),
     (["study"], "the study NAME is missing"),
     (["study", "nosuch"], "unknown study 'nosuch'"),

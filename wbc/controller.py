@@ -80,7 +80,9 @@ from .stack import Stack
 from .workspace import BackendSpec, Workspace
 
 FALLBACKS = ("hold", "last", "decelerate", "raise")
-_clock, _asarray, _SOLVED = time.perf_counter, np.asarray, Status.SOLVED  # for the tick
+# for the tick: module globals, looked up faster than attributes
+_clock, _asarray, _ndarray, _FLOAT = time.perf_counter, np.asarray, np.ndarray, np.dtype(float)
+_SOLVED = Status.SOLVED
 DECELERATION = 0.5  # "decelerate": the previous command's share kept per failed tick
 
 
@@ -344,7 +346,8 @@ class Controller:
         # The common case costs ≈ 1.5 µs of Python here (the fused tick's budget): no tuple
         # built, no attribute looked up twice, the checks' messages built only on failure.
         t0 = _clock()
-        q = _asarray(q, dtype=float)
+        if type(q) is not _ndarray or q.dtype is not _FLOAT:  # else asarray would return q
+            q = _asarray(q, dtype=float)
         if q.shape != self._q_shape or not all_finite(q):
             self._refuse("q", q, self.nq)
         if v is not None:

@@ -173,6 +173,12 @@ class FusedWorkspace(Workspace):
 
     The :class:`~wbc.Solution` a fused tick returns is one object reused every tick, and its
     ``x`` a buffer the next tick overwrites: copy what you keep.
+
+    Attributes:
+        function: the fused CasADi function (compiled C, or the virtual machine's).
+        fallback_solves: ticks the generated daqp did not solve (taken by the ordinary path).
+        bare_call: one call of the generated function on the current parameters, nothing
+            else (no checks, no solution) — what benchmarks compare a tick with.
     """
 
     def __init__(self, compiled: CompiledStack, profile: str = "default",
@@ -188,6 +194,7 @@ class FusedWorkspace(Workspace):
         self.fallback_solves = 0  # ticks the generated daqp did not solve
         self._x = np.zeros(compiled.n)
         self._buffer, self._evaluate = function.buffer()
+        self.bare_call = self._evaluate  # the generated function alone, for benchmarks
         # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res, and
         # numpy's, for Python < 3.12, no buffer protocol of ndarray)
         self._buffer.set_arg(0, memoryview(self.p))  # type: ignore[call-arg, arg-type]
