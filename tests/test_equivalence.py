@@ -27,7 +27,10 @@ TOL = 1e-7
 # stay exact, interior-point ones converge to about the square root of their tolerance there.
 # Measured worst case on these tests: clarabel 9e-6.
 SCALING_TOL = {"clarabel": 5e-5}
-# Backends that fail outright on some of these degenerate LPs (a status, never a wrong answer):
+# Backends that fail on some of these degenerate LPs: a failure status, or (proxqp, casadi:osqp)
+# an answer outside the tolerance reported as solved. Measured on 300 random instances per test
+# (velocity / acceleration): osqp 11 / 11, casadi:osqp 12 / 13, proxqp 7 / 9 failures. At such
+# rates a run of the derandomised examples may meet none (an XPASS): the marks are not stale.
 SCALING_UNRELIABLE = {
     "osqp": "ADMM stalls on degenerate vertex LPs (max_iter / solved inaccurate)",
     "casadi:osqp": "ADMM stalls on degenerate vertex LPs (max_iter / solved inaccurate)",
