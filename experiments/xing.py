@@ -672,6 +672,7 @@ def _figures(runs: dict, out_dir: Path) -> list[str]:
     ax.axhline(POSITION.sigma_thr, color="k", lw=0.8, ls="--", label="σ_thr")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("σ_min of the arm's position Jacobian [m/rad]")
+    ax.set_title("Singularity scenario: smallest singular value of the arm")
     ax.legend()
     names.append(save_figure(fig, out_dir / "xing_sigma_min.png"))
     return names
