@@ -44,9 +44,10 @@ class LevelResult:
         frozen_band: relative half-width of the band the frozen rows were kept in: 0 for exact
             equalities, the stack's ``freeze_tol``, or the workspace's retry band when the
             exact solve failed (see :class:`~wbc.Stack`).
-        conflict: when the backend found this QP infeasible, the names of the hard
-            constraints that cannot hold together (an irreducible set, see
-            :mod:`wbc.infeasibility`); empty otherwise.
+        conflict: the names of the hard constraints that cannot hold together in this QP (an
+            irreducible set, see :mod:`wbc.infeasibility`), looked for when the backend found
+            it infeasible or when it is the first QP and failed; empty otherwise (or when the
+            constraints can hold: the failure was the solver's).
     """
 
     label: str
@@ -79,10 +80,10 @@ class Solution:
             or when the first level failed.
         fallback: set by :class:`~wbc.Controller`: ``None`` when the QP was solved, else what
             produced the command (``"partial"`` or the fallback policy).
-        conflict: when a level was found infeasible, the names of the hard constraints that
-            cannot hold together there (drop any one and the rest can; ``"the levels above"``
-            when the optima of higher priorities take part); empty otherwise. ``message``
-            details which rows and bounds.
+        conflict: the failing QP's ``LevelResult.conflict``: the names of the hard constraints
+            that cannot hold together there (drop any one and the rest can; ``"the levels
+            above"`` when the optima of higher priorities take part); empty when solved or when
+            none is found. ``message`` details which rows and bounds.
     """
 
     x: np.ndarray
