@@ -178,3 +178,30 @@ def test_bad_input_is_refused_with_the_name():
         joint_acceleration_bounds(np.zeros(2), np.zeros(3), **ok)
     with pytest.raises(InvalidValueError, match="'limits'.*dt"):
         JointAccelerationLimit(robots.load("mecanum_gen3"), -1.0, name="limits")
+
+
+@pytest.mark.parametrize("method", ["viable", "xing"])
+def test_a_qp_pushing_a_joint_into_its_limit(method):
+    """Closed loop on wbc.sim (exact actuation, acceleration commands): a task asking joint 2
+    of the Gen3 (±2.2 rad) for 100 rad/s² under JointAccelerationLimit. The viable bounds stop
+    it at the limit; Xing's bounds as printed overshoot it (measured: by 3.5 mrad, and their
+    bounds cross once: one failed tick)."""
+    from wbc.sim import Simulation
+
+    robot = robots.load("mecanum_gen3")
+    dt = 0.01
+    stack = wbc.Stack(wbc.Variables(qdd=robot.nv), damping=1e-3)
+    push = np.zeros((1, robot.nv))
+    push[0, 4] = 1.0
+    stack.add(wbc.tasks.LinearTask(push, [100.0], name="push"))
+    stack.constrain(JointAccelerationLimit(robot, dt, method, name="limits"))
+    controller = wbc.Controller(robot, stack, "daqp", dt=dt)
+    run = Simulation(robot, controller, dt, command="acceleration").run(seconds=2.0)
+    lim = robot.limits
+    assert run.q[:, 4].max() > 2.0  # it got there
+    overshoot = run.q[:, 4].max() - lim.q_upper[4]
+    if method == "viable":
+        assert overshoot <= 1e-9 and run.failures == 0
+        assert np.all(np.abs(run.v) <= lim.v_upper + 1e-9)
+    else:
+        assert overshoot > 1e-3  # the braking point comes one period too late
