@@ -19,8 +19,9 @@ position limit. ``tests/test_xing_bounds.py`` counts how often on random states.
 
 ``method="viable"`` — bounds that keep the state in a viability kernel of the discrete-time
 double integrator, after A. Del Prete, "Joint position and velocity bounds in discrete-time
-acceleration/torque control of robot manipulators", IEEE RA-L 3(1), 2018 (the idea TSID's
-``TaskJointPosVelAccBounds`` and OpenSoT's joint-limit constraints implement). The kernel used
+acceleration/torque control of robot manipulators", IEEE RA-L 3(1), 2018 (TSID's
+``TaskJointPosVelAccBounds.computeAccLimitsFromViability`` implements his bounds; this is our
+own derivation of the same idea, written for the integration above). The kernel used
 here is the set of states from which braking at the maximal deceleration stops the joint
 inside its range, ``q + q̇²/(2|A_min|) <= Q_max`` for ``q̇ >= 0`` (and the mirror image for
 the lower limit), with ``|q̇|`` within the velocity limits. The upper bound is the largest
@@ -40,8 +41,8 @@ next state inside it (the continuous braking parabola is the envelope of the dis
 the state at the samples never passes the stopping point), so the bounds stay ordered and a
 closed loop choosing inside them never violates a position or velocity limit — provided the
 range is wide enough to brake in (``Q_max − Q_min`` larger than a few ``|A| T²``, true of every
-real joint). This kernel is the continuous-time one of Del Prete's paper evaluated at the
-samples; his discrete-time kernel is slightly larger (less conservative by ``O(A T²)``).
+real joint). The kernel is that of continuous-time braking, checked at the samples: it may be
+slightly more conservative than the exact discrete-time kernel, never less safe.
 
 Infinite position limits (``±inf``) remove the position terms; the base's coordinates of a
 mobile manipulator always have them.
