@@ -105,29 +105,32 @@ def level_conflict(block, A: np.ndarray, lA: np.ndarray, uA: np.ndarray, lb: np.
     if not conflicts:
         return (), ""
     hard_names = block.hard_names
-    parts: dict[str, dict[str, list[str]]] = {}  # constraint name -> what -> which entries
+    # constraint name -> what -> indices (variables or the constraint's own rows)
+    parts: dict[str, dict[str, list[int]]] = {}
     for c in conflicts:
         if c.kind == "bound":
             owners = (hard_names.bounds[c.index] if hard_names else ()) or ("variable bounds",)
             for owner in owners:
-                parts.setdefault(owner, {}).setdefault(f"{c.side} bound of", []).append(
-                    _entry(variables, c.index))
+                parts.setdefault(owner, {}).setdefault(f"{c.side} bound of", []).append(c.index)
             continue
         row = int(kept[c.index])
         if row < block.m_hard:
             owner = hard_names.rows[row] if hard_names else "hard constraints"
             local = row - hard_names.rows.index(owner) if hard_names else row
-            parts.setdefault(owner, {}).setdefault(f"{c.side} side of row", []).append(
-                str(local))
+            parts.setdefault(owner, {}).setdefault(f"{c.side} side of row", []).append(local)
         else:
             parts.setdefault(ABOVE, {}).setdefault("their optimum", [])
-    details = "; ".join(f"{name!r} ({_listing(whats)})" for name, whats in parts.items())
+    details = "; ".join(f"{name!r} ({_listing(whats, variables)})"
+                        for name, whats in parts.items())
     return tuple(parts), f"hard constraints that cannot hold together: {details}"
 
 
-def _listing(whats: dict[str, list[str]]) -> str:
-    """``{"upper bound of": ["x[0]", "x[1]"]}`` -> ``"upper bound of x[0], x[1]"``."""
-    return ", ".join(" ".join([what, ", ".join(items)]).strip() for what, items in whats.items())
+def _listing(whats: dict[str, list[int]], variables) -> str:
+    """``{"upper bound of": [1, 0]}`` -> ``"upper bound of x[0], x[1]"`` (rows: their
+    numbers, bounds: the variables' names), in index order."""
+    return ", ".join(" ".join([what, ", ".join(
+        _entry(variables, i) if what.endswith("bound of") else str(i) for i in sorted(items))
+    ]).strip() for what, items in whats.items())
 
 
 def _entry(variables, index: int) -> str:
