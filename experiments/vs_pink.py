@@ -332,6 +332,10 @@ def main(argv: list[str] | None = None, rival: type | None = None) -> int:
     path = args.out / f"vs_{other}.json"
     path.write_text(json.dumps(report, indent=2))
     print(markdown_table(results, other))
+    print(f"\nagree: final hand poses within {POSE_TOL:g} m and rad, no wbc failure, and the "
+          f"commands within {COMMAND_TOL:g} rad/s at the same state — or, where they differ "
+          f"more (iterative solvers), wbc's command at least as close to the exact QP answer "
+          f"as {other}'s (the difference is {other}'s solver tolerance)")
     print(f"\nmachine: {machine['cpu']}, {machine['cores']} cores, {machine['platform']}, "
           f"python {machine['python']}; jit={args.jit}; {args.ticks} ticks per backend")
     if skipped:
