@@ -13,7 +13,10 @@ a closed loop tracking a circle with the end effector is run once with the refer
 (``≥ 1000`` ticks after a warm-up), so that all backends solve the same problems with realistic
 warm starts; the backends take turns at every state (interleaved, in a rotating order), so
 machine noise hits them alike. Per tick it records the wall time of ``Controller.step`` and its
-split into kinematics (model stage) / assembly / solve, whether it succeeded (or only partly: a
+split into kinematics (model stage) / assembly / solve / the rest ("python": checks, fallback
+policy, bookkeeping), which path the controller took (``fused``: the whole tick one generated
+C function, :mod:`wbc.fused`, where daqp solves a single QP — its ``solve`` is that call;
+``jit`` or ``vm``), whether it succeeded (or only partly: a
 lower level failed and the command is the levels above it), and the largest difference of its
 command from the reference's. Controllers use ``kinematics="compiled"`` by default (poses and
 Jacobians inside the compiled functions; ``--kinematics numeric`` times pinocchio's getters
@@ -147,7 +150,8 @@ def replay(robot, kind: str, backends: list[str], run: dict, warmup: int,
     ``kinematics`` and ``jit`` are the :class:`wbc.Controller` options."""
     controllers = {b: wbc.Controller(robot, build_stack(robot, kind), backend=b, dt=DT,
                                      kinematics=kinematics, jit=jit) for b in backends}
-    samples = {b: {"tick": [], "kinematics": [], "assembly": [], "solve": []} for b in backends}
+    samples = {b: {"tick": [], "kinematics": [], "assembly": [], "solve": [], "python": []}
+               for b in backends}
     ok = {b: [] for b in backends}
     partial = {b: [] for b in backends}
     diff = {b: [] for b in backends}
@@ -166,14 +170,26 @@ def replay(robot, kind: str, backends: list[str], run: dict, warmup: int,
             own["kinematics"].append(sol.timings.model * 1e6)
             own["assembly"].append(sol.timings.assembly * 1e6)
             own["solve"].append(sol.timings.solve * 1e6)
+            own["python"].append((elapsed - sol.timings.total) * 1e6)
             ok[backend].append(sol.ok)
             partial[backend].append(sol.partial)
             diff[backend].append(float(np.abs(cmd - run["commands"][k]).max()))
-    return {b: {"samples": {key: np.round(val, 3).tolist() for key, val in samples[b].items()},
+    return {b: {"path": _path(controllers[b]),
+                "samples": {key: np.round(val, 3).tolist() for key, val in samples[b].items()},
                 "success_rate": float(np.mean(ok[b])), "partial_rate": float(np.mean(partial[b])),
                 "max_abs_diff_vs_reference": float(max(diff[b])),
                 "stats": {key: _stats(val) for key, val in samples[b].items()}}
             for b in backends}
+
+
+def _path(controller) -> str:
+    """How a controller's tick runs: ``"fused"`` (one generated C function, :mod:`wbc.fused`),
+    ``"jit"`` (compiled C level functions around Python backends) or ``"vm"`` (CasADi's
+    virtual machine)."""
+    if controller.fused:
+        return "fused"
+    jitted = all(not b.function.is_a("SXFunction") for b in controller.compiled.blocks)
+    return "jit" if jitted else "vm"
 
 
 def _stats(samples) -> dict:
@@ -243,15 +259,17 @@ def markdown(report: dict) -> str:
     for name, per_stack in report["results"].items():
         for kind, per_backend in per_stack.items():
             out += [f"### {name} — {kind}", "",
-                    "| backend | tick median | p95 | max | kinematics | assembly | solve | "
-                    "success | partial | max abs diff vs ref |",
-                    "|---|---|---|---|---|---|---|---|---|---|"]
+                    "| backend | path | tick median | p95 | max | kinematics | assembly | "
+                    "solve | python | success | partial | max abs diff vs ref |",
+                    "|---|---|---|---|---|---|---|---|---|---|---|---|"]
             for backend, r in per_backend.items():
                 s = r["stats"]
                 out.append(
-                    f"| {backend} | {s['tick']['median']:.1f} | {s['tick']['p95']:.1f} | "
+                    f"| {backend} | {r['path']} | {s['tick']['median']:.1f} | "
+                    f"{s['tick']['p95']:.1f} | "
                     f"{s['tick']['max']:.0f} | {s['kinematics']['median']:.1f} | "
                     f"{s['assembly']['median']:.1f} | {s['solve']['median']:.1f} | "
+                    f"{s['python']['median']:.1f} | "
                     f"{100 * r['success_rate']:.1f} % | {100 * r['partial_rate']:.1f} % | "
                     f"{r['max_abs_diff_vs_reference']:.1e} |")
             out.append("")
