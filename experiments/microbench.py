@@ -10,6 +10,11 @@ closed loop, so warm starts matter. For every installed backend it reports
 * the median of a cold, stateless ``qpsolvers.solve_qp`` call on the same QP, and the ratio of
   the persistent tick (assembly + solve) to it.
 
+With daqp and a C compiler, a row ``daqp (fused)`` times the fused tick (:mod:`wbc.fused`):
+assembly and solve are one generated C call (reported as "solve"), daqp cold-started inside
+it — against the ``daqp`` row (compiled assembly, daqp kept alive with its active set between
+ticks) it shows what the fusion saves and what the lost warm start costs.
+
 Run: ``wbc demo`` or ``python -m wbc.experiments.microbench --ticks 2000``.
 """
 
@@ -26,11 +31,13 @@ import numpy as np
 import wbc
 from wbc.experiments.machine import describe_machine
 from wbc.experiments.progress import report_progress
+from wbc.fused import FusedWorkspace, compiler_available
 from wbc.solvers import available_backends
 from wbc.tasks import Bounds, LinearTask
 
 N_BASE, N_ARM, M_TASK = 3, 7, 6
 REFERENCE = ("daqp", "tight")  # active set: exact to ~1e-14 on this positive-definite QP
+FUSED = "daqp (fused)"  # the row of the fused tick, wbc.fused (its "solve" is the whole call)
 
 
 def pose_like_stack(seed: int = 0) -> tuple[wbc.Stack, dict]:
@@ -77,8 +84,12 @@ def run(ticks: int = 1000, warmup: int = 50, backends: list[str] | None = None,
             ref_x.append(reference.solve().x)
     report = {"machine": describe_machine(), "ticks": ticks, "jit": jit, "problem":
               f"{M_TASK}x{N_BASE + N_ARM} task + posture + damping + bounds", "backends": {}}
-    for done, name in enumerate(names, start=1):
-        ws = stack.workspace(name, jit=jit)
+    runs = [(name, name) for name in names]
+    if "daqp" in names and jit and compiler_available():
+        runs.append((FUSED, "daqp"))
+    for done, (label, name) in enumerate(runs, start=1):
+        ws = (FusedWorkspace(stack.compile()) if label == FUSED else
+              stack.workspace(name, jit=jit))
         assembly, solve, errors, failures = [], [], [], 0
         for k, params in enumerate(seq):
             ws.set(**params)
@@ -108,9 +119,9 @@ def run(ticks: int = 1000, warmup: int = 50, backends: list[str] | None = None,
             entry["cold_qpsolvers_us"] = _stats(times)
             entry["tick_over_cold"] = entry["tick_us"]["median"] / entry["cold_qpsolvers_us"][
                 "median"]
-        report["backends"][name] = entry
+        report["backends"][label] = entry
         if progress:
-            progress(done, len(names), name)
+            progress(done, len(runs), label)
     return report
 
 
