@@ -15,9 +15,11 @@ import importlib.metadata
 import importlib.util
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import traceback
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -57,10 +59,23 @@ def forked_wbc(args: tuple[str, ...], hide: str | None = None) -> Done:
                 sys.stderr.flush()
             finally:
                 os._exit(code)
-        _, status = os.waitpid(pid, 0)
+        status = _wait(pid, timeout=60.0)
         out.seek(0)
         err.seek(0)
         return Done(os.waitstatus_to_exitcode(status), out.read(), err.read())
+
+
+def _wait(pid: int, timeout: float) -> int:
+    """The wait status of child ``pid``; killed (and the test failed) after ``timeout`` [s]."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            return status
+        time.sleep(0.005)
+    os.kill(pid, signal.SIGKILL)
+    os.waitpid(pid, 0)
+    pytest.fail(f"the forked child {pid} did not exit within {timeout} s")
 
 
 def fresh_wbc(args: tuple[str, ...], hide: str | None = None) -> Done:
