@@ -124,6 +124,8 @@ class QpsolversBackend(BackendBase):
                 if not converged:
                     return failure(n, m, Status.MAX_ITER, "proximal iterations did not converge",
                                    iterations)
+        except (TypeError, AttributeError):  # a setting the solver rejects: not a failure of
+            raise  # this problem (BackendBase makes it a BackendError naming the backend)
         except Exception as exc:  # any solver's failure, reported as a status
             return failure(n, m, Status.NUMERICAL, f"{self.name}: {exc}")
         self._x = x

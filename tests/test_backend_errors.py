@@ -52,3 +52,11 @@ def test_a_crash_inside_the_solver_is_a_backend_error(stage, monkeypatch):
     with pytest.raises(wbc.BackendError,
                        match=f"QP backend 'daqp' failed in {stage}: RuntimeError: segfault"):
         call()
+
+
+@pytest.mark.parametrize("solver", ["daqp", "quadprog", "clarabel"])
+def test_a_setting_qpsolvers_rejects_is_a_backend_error(solver):
+    # the stateless adapter reports a solver's failure as a status, but a rejected setting
+    # (TypeError / AttributeError) is no failure of the problem
+    with pytest.raises(wbc.BackendError, match=f"QP backend 'qpsolvers:{solver}' failed in"):
+        workspace(f"qpsolvers:{solver}", no_such_option=1).solve()
