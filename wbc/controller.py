@@ -50,6 +50,12 @@ Write ``q``, ``v``, ``dt`` → ``robot.update`` → the quantity fillers (a loop
 quantities, never over tasks) → references → ``workspace.solve()`` (one compiled evaluation
 and one warm-started backend solve per priority level) → the fallback policy if the solve
 failed. ``solution.timings.model`` holds the first four steps.
+
+On the fused path (the default for a single-QP stack on daqp with a C compiler, see
+:mod:`wbc.fused`), ``workspace.solve()`` is one call of a generated C function holding the
+compiled kinematics, the assembly and the daqp solve (``timings.solve``); a tick it does not
+solve is solved again on the ordinary path, so statuses, partial solutions and fallbacks read
+the same. The returned command and ``last_solution`` are then reused buffers.
 """
 
 from __future__ import annotations
