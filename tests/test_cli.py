@@ -34,9 +34,10 @@ def test_demo_writes_a_table_and_json(tmp_path, capsys):
                      "--out", str(tmp_path)]) == 0
     captured = capsys.readouterr()
     assert "| daqp |" in captured.out and "| quadprog |" in captured.out
-    assert "] 2/2  quadprog" in captured.err  # progress on stderr, tables on stdout
+    assert "] 2/3  quadprog" in captured.err  # progress on stderr, tables on stdout
     report = json.loads((tmp_path / "microbench.json").read_text())
-    assert set(report["backends"]) == {"daqp", "quadprog"}
+    assert set(report["backends"]) == {"daqp", "quadprog", "daqp (fused)"}  # C compiler here
+    assert report["backends"]["daqp (fused)"]["max_abs_diff_vs_reference"] < 1e-9
     assert report["backends"]["daqp"]["failures"] == 0
     assert report["backends"]["daqp"]["max_abs_diff_vs_reference"] < 1e-5
 
