@@ -217,7 +217,7 @@ class Controller:
         self._plan()
         self.dt = dt
         # keyword -> (parameter name, view, allow_inf), cached
-        self._references: dict[str, tuple[str, np.ndarray, bool]] = {}
+        self._references: dict[str, tuple] = {}  # keyword -> see _reference
 
     def _fused_workspace(self, fused, backend, profile, warm_start, options):
         """A :class:`~wbc.fused.FusedWorkspace` if the fused path applies (see ``fused`` in the
@@ -310,7 +310,10 @@ class Controller:
             self._dt[0] = value
 
     # ------------------------------------------------------------------ references
-    def _reference(self, key: str):
+    def _reference(self, key: str) -> tuple:
+        """``(name, view, shape, allow_inf, what, paired)`` of reference keyword ``key``
+        (cached): its parameter, the view to write, how to check it, its name in errors, and
+        whether it is a side of a ``"<t>.lower"``/``"<t>.upper"`` pair."""
         ref = self._references.get(key)
         if ref is None:
             params = self.compiled.parameters
@@ -321,21 +324,25 @@ class Controller:
                     + (" (model quantities are filled by the controller; set the period "
                        "with controller.dt)" if key in self.model_parameters else ""))
             _, shape, allow_inf = params[name]
-            ref = self._references[key] = (name, self.workspace.view(name), allow_inf)
+            paired = name.rpartition(".")[2] in ("lower", "upper")
+            ref = self._references[key] = (name, self.workspace.view(name), shape, allow_inf,
+                                           f"reference {key!r} (parameter {name!r})", paired)
         return ref
 
     def set_references(self, **references) -> None:
         """Set references by keyword without solving (checked: name, shape, NaN, inf).
         All-or-nothing: every value is checked before any is written, so a refused call leaves
         the controller as it was."""
-        views, checked = {}, {}
+        checked, paired = {}, False
         for key, value in references.items():
-            name, views[name], allow_inf = self._reference(key)
-            checked[name] = checked_array(value, views[name].shape,
-                                          f"reference {key!r} (parameter {name!r})", allow_inf)
-        self.workspace.check_bound_pairs(checked)
-        for name, value in checked.items():
-            views[name][...] = value
+            name, view, shape, allow_inf, what, pair = self._reference(key)
+            checked[name] = (view, checked_array(value, shape, what, allow_inf))
+            paired |= pair
+        if paired:
+            self.workspace.check_bound_pairs({name: value for name, (_, value)
+                                              in checked.items()})
+        for view, value in checked.values():
+            view[...] = value
 
     # ------------------------------------------------------------------ the tick
     def step(self, q, v=None, **references) -> np.ndarray:
