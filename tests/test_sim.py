@@ -120,6 +120,22 @@ def test_odometry_error_scales_the_true_base_motion_only(omni):
         Simulation(omni, Constant(command), DT, [actuation.Lag(0.1), actuation.OdometryError()])
 
 
+def test_odometry_error_does_not_compound_under_acceleration_commands():
+    """The scale acts on the commanded velocity (v_est + a·dt), never on the previous truth:
+    a constant acceleration gives a true base velocity (1 + scale) times the estimated one,
+    and zero acceleration keeps the base at rest (it grew as 1.03^k before)."""
+    robot = wbc.robots.load("mecanum_gen3")
+    accelerate = np.r_[0.02, 0.0, 0.0, np.zeros(robot.nv - 3)]
+    run = Simulation(robot, Constant(accelerate), 0.02,
+                     [actuation.OdometryError(scale=0.05, noise=0.0)],
+                     command="acceleration").run(ticks=500)
+    np.testing.assert_allclose(run.v[:, 0], 1.05 * (run.v_est[:, 0] + 0.02 * 0.02), rtol=1e-12)
+    still = Simulation(robot, Constant(np.zeros(robot.nv)), 0.02,
+                       [actuation.OdometryError(0.03, 0.0)], command="acceleration").run(
+        ticks=1000)
+    assert np.abs(still.v).max() == 0.0
+
+
 def test_wheel_slip_limits_each_wheel_to_its_friction(omni):
     step = np.r_[0.8, 0.0, 0.0, np.zeros(omni.nv - 3)]  # a velocity step: large traction
     grip = Simulation(omni, Constant(step), DT, [actuation.WheelSlip(mu=50.0)]).run(ticks=5)

@@ -15,8 +15,9 @@ A tick at time ``t = k·dt``:
    and returns its command (``controller.step(q_est, v_est, **references)``; any object with
    that method works — a :class:`wbc.Controller` or a class composing several pieces);
 2. the command becomes the velocity asked for, ``v_command``: the command itself
-   (``command="velocity"``), or ``v + a·dt`` for an acceleration ``a``
-   (``command="acceleration"``); any other ``command`` kind (e.g. ``"torque"``) is passed
+   (``command="velocity"``), or ``v_est + a·dt`` for an acceleration ``a``
+   (``command="acceleration"``: the actuators continue from the velocity they measure; the
+   truth starts from ``v + a·dt``); any other ``command`` kind (e.g. ``"torque"``) is passed
    through raw and an actuation model must produce the motion;
 3. the **actuation chain** (:mod:`wbc.sim.actuation`, in order) turns it into the velocity the
    robot really moves with, ``v_true``, and the one its encoders and odometry report,

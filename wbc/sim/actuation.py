@@ -3,8 +3,9 @@
 Each tick the simulator hands an :class:`ActuationState` through the chain of models given to
 :class:`~wbc.sim.Simulation`, in order. ``state.v_true`` (the velocity the robot really moves
 with) and ``state.v_measured`` (what its encoders and odometry report, from which the
-controller's estimate is integrated) both start as ``state.v_command``, the velocity asked for;
-each model rewrites them. Models may record per-tick numbers in ``state.signals`` (they become
+controller's estimate is integrated) both start as ``state.v_command``, the velocity asked for
+(for acceleration commands the truth starts from its own velocity, ``v + a·dt``); each model
+rewrites them. Models may record per-tick numbers in ``state.signals`` (they become
 ``run.signals``).
 
 =====================  ==================================================================
@@ -215,7 +216,8 @@ class OdometryError(Actuation):
         self._require_velocity(state, "OdometryError")
         i = self._idx
         draw = state.rng.standard_normal(i.size)
-        state.v_true[i] = (1.0 + self._scale) * state.v_true[i] + self._noise * draw
+        # from the command, never from the previous true velocity: the error must not compound
+        state.v_true[i] = (1.0 + self._scale) * state.v_command[i] + self._noise * draw
 
 
 class WheelSlip(Actuation):

@@ -222,8 +222,11 @@ class Simulation:
             if not all_finite(command):
                 raise NonFiniteError(f"the controller commanded NaN or inf at t = {t:.6g} s")
             solution = getattr(self.controller, "last_solution", None)
+            v_command, v_true = self._velocity_command(command, v, v_est)
             state = ActuationState(self.dt, t, rng, self.robot, command, q, v, q_est, v_est,
-                                   self._velocity_command(command, v))
+                                   v_command)
+            if v_true is not None:
+                state.v_true = v_true
             for model in self.actuation:
                 model.apply(state)
             if state.v_true is None:
@@ -255,15 +258,20 @@ class Simulation:
         return Run(**arrays, signals={k: np.asarray(val) for k, val in signals.items()},
                    q_final=q, q_est_final=q_est, v_final=v, dt=self.dt, nv_base=self.nv_base)
 
-    def _velocity_command(self, command: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+    def _velocity_command(self, command: np.ndarray, v: np.ndarray, v_est: np.ndarray):
+        """``(v_command, v_true)``: the velocity the actuators are asked for — the command, or
+        the controller's velocity plus its acceleration over the tick, ``v_est + a·dt`` — and
+        the truth's before the actuation chain (``v + a·dt``; ``None``: the same)."""
         if self.command not in (VELOCITY, ACCELERATION):
-            return None
+            return None, None
         mapped = command if self.command_map is None else np.asarray(
             self.command_map(command), dtype=float).reshape(-1)
         if mapped.shape != (self.nv,):
             raise ShapeError(f"a {self.command} command must have nv = {self.nv} entries, got "
                              f"{mapped.shape[0]}; pass command_map= to select them")
-        return mapped.copy() if self.command == VELOCITY else v + mapped * self.dt
+        if self.command == VELOCITY:
+            return mapped.copy(), None
+        return v_est + mapped * self.dt, v + mapped * self.dt
 
     @staticmethod
     def _state(value, size: int, what: str) -> np.ndarray:
