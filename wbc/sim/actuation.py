@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -63,15 +64,15 @@ class ActuationState:
     dt: float
     t: float
     rng: np.random.Generator
-    robot: object
+    robot: Any
     command: np.ndarray
     q: np.ndarray
     v: np.ndarray
     q_est: np.ndarray
     v_est: np.ndarray
-    v_command: np.ndarray | None
-    v_true: np.ndarray | None = None
-    v_measured: np.ndarray | None = None
+    v_command: Any  # np.ndarray, or None for raw commands
+    v_true: Any = None  # np.ndarray once set (None only until a raw command is turned into one)
+    v_measured: Any = None
     signals: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -260,7 +261,7 @@ class WheelSlip(Actuation):
         self.yaw_inertia, self.g = yaw_inertia, g
 
     def reset(self, robot, dt: float) -> None:
-        base = getattr(robot, "base", None)
+        base: Any = getattr(robot, "base", None)
         J = getattr(base, "jacobian", None)
         steered = J is None and hasattr(base, "steering_for_twist")
         if (J is None and not steered) or not hasattr(base, "radius"):
@@ -283,7 +284,7 @@ class WheelSlip(Actuation):
         if not (mass > 0 and yaw > 0 and math.isfinite(mass) and math.isfinite(yaw)):
             raise InvalidValueError(f"WheelSlip: mass and yaw inertia must be > 0, got {mass}, "
                                     f"{yaw}")
-        B = np.asarray(base.body_map, dtype=float)
+        B = np.array(base.body_map, dtype=float)
         self._M = B.T @ np.diag([mass, mass, yaw]) @ B
         self._M_inv = np.linalg.inv(self._M)
         self._mu = _per_joint(self.mu, n_wheels, "WheelSlip mu")

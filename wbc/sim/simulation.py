@@ -8,6 +8,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -39,8 +40,8 @@ class Tick:
     v: np.ndarray
     command: np.ndarray
     references: dict
-    solution: object
-    robot: object
+    solution: Any
+    robot: Any
 
 
 @dataclass
@@ -109,7 +110,7 @@ class Run:
             if missing:
                 raise WbcError(f"run has no series {missing}; it has {sorted(every)}")
             every = {k: every[k] for k in keys}
-        return {k: (v.tolist() if isinstance(v, np.ndarray) else list(v))
+        return {k: (v.tolist() if isinstance(v, np.ndarray) else list(v))  # type: ignore
                 for k, v in every.items()}
 
 
@@ -194,7 +195,7 @@ class Simulation:
         """
         if (seconds is None) == (ticks is None):
             raise WbcError("give either seconds or ticks")
-        n = int(round(seconds / self.dt)) if ticks is None else int(ticks)
+        n = int(round(seconds / self.dt)) if seconds is not None else int(ticks)  # type: ignore
         if n < 1:
             raise InvalidValueError(f"a run needs at least one tick, got {n}")
         q = self._state(self.robot.neutral() if q0 is None else q0, self.nq, "q0")
@@ -207,9 +208,9 @@ class Simulation:
             references = {}
         ref_fn = references if callable(references) else (lambda t, r=dict(references): r)
 
-        rows = {name: [] for name in ("t", "q", "q_est", "v", "v_est", "command", "status",
-                                      "partial", "fallback", "tick_s", "model_s", "assembly_s",
-                                      "solve_s")}
+        columns = ("t", "q", "q_est", "v", "v_est", "command", "status", "partial", "fallback",
+                   "tick_s", "model_s", "assembly_s", "solve_s")
+        rows: dict[str, list] = {name: [] for name in columns}
         signals: dict[str, list] = {name: [] for name in self.signals}
         clock = time.perf_counter
         for k in range(n):
@@ -253,8 +254,8 @@ class Simulation:
                 q = self.robot.integrate(q, 0.5 * (v + v_true), self.dt)
                 q_est = self.robot.integrate(q_est, 0.5 * (v_est + v_meas), self.dt)
             v, v_est = v_true, v_meas
-        arrays = {k: (np.asarray(val) if k not in ("status", "fallback") else val)
-                  for k, val in rows.items()}
+        arrays: dict[str, Any] = {k: (np.asarray(val) if k not in ("status", "fallback") else val)
+                                  for k, val in rows.items()}
         return Run(**arrays, signals={k: np.asarray(val) for k, val in signals.items()},
                    q_final=q, q_est_final=q_est, v_final=v, dt=self.dt, nv_base=self.nv_base)
 
