@@ -28,13 +28,41 @@ stacks here (``n <= 13``) the extra LAPACK call (``dtrtri``) costs about what it
 and it would change the results in the last bits (on degenerate problems, which of the valid
 multipliers comes out).
 
-Options (profiles ``default`` and ``tight``): ``feas_tol``, and ``prox_mu``, ``prox_tol``,
-``prox_max_iter`` of :class:`~wbc.solvers.proximal.ProximalPoint`.
+No hang, ever. quadprog's C loop has no iteration limit, and on degenerate problems it can
+cycle forever (upstream issues quadprog#32 and #37; here: two equal rows of ``C'x >= b`` with
+an ill- or well-conditioned ``H`` hang about one random problem in ten, a row that is the sum of
+two others about one in 10⁴ — ``tests/test_regressions.py`` holds such problems). Two measures,
+in this order:
+
+* *the degeneracy is removed before the call*: inequality rows that point the same way as
+  another row (cosine > ``1 - 1e-10``) are dropped unless they are the tightest of their group,
+  and an inequality or equality parallel to an equality it agrees with is dropped
+  (:func:`parallel_rows`). This is what duplicated hard constraints of a user produce, and it
+  leaves the solution unchanged (a dropped row gets multiplier 0, which is a valid multiplier
+  of an implied row). It costs a Gram matrix of the rows per solve (a few µs).
+* *the call is bounded*: quadprog runs on a worker thread (it releases the GIL) and the backend
+  waits at most ``time_limit`` seconds (default 1, the campaign's definition of a hang: a
+  wall-clock limit must leave room for a loaded machine; quadprog needs < 1 ms on the stacks
+  here). A call that has not returned by then is reported ``NUMERICAL`` ("did not return"),
+  and that worker is abandoned — it keeps one core busy until the process ends, which is why
+  the first measure exists: rows combining several others can still cycle, and then the
+  controller gets a status (and falls back) instead of waiting forever. A hand-off to the
+  worker costs ≈ 15 µs per call.
+
+Refusing the input was rejected: dependent rows are legitimate (bounds plus a general row meet
+at a vertex every time a task saturates) and the cascade itself produces them. Isolating
+quadprog in a process would make the bound clean (the child can be killed) but costs a
+pickling round trip per call, more than quadprog's arithmetic.
+
+Options (profiles ``default`` and ``tight``): ``feas_tol``, ``time_limit`` [s], and
+``prox_mu``, ``prox_tol``, ``prox_max_iter`` of :class:`~wbc.solvers.proximal.ProximalPoint`.
 Accuracy on the tests (``tight``): ≈1e-14 on positive-definite QPs, ≈1e-11 with a singular
 Hessian or an LP.
 """
 
 from __future__ import annotations
+
+import threading
 
 import numpy as np
 
@@ -47,6 +75,103 @@ from .forms import OneSidedRows, RowTable
 
 class _NotConverged(Exception):
     """The proximal iterations hit their limit."""
+
+
+class _TimedOut(Exception):
+    """quadprog did not return within the time limit."""
+
+
+PARALLEL = 1.0 - 1e-10
+"""Cosine above which two constraint rows count as parallel (same direction)."""
+
+
+def parallel_rows(C: np.ndarray, b: np.ndarray, n_eq: int) -> np.ndarray | None:
+    """Which constraints of quadprog's ``C' x >= b`` (the first ``n_eq`` equalities) to keep so
+    that no two kept rows are parallel where one makes the other redundant; ``None`` when
+    every row is kept (the common case: one Gram matrix, no Python loop).
+
+    Dropped: an inequality pointing the same way as a tighter inequality (of two equal ones,
+    the later), an inequality implied by an equality parallel to it (either sign), and an
+    equality parallel to an earlier one with the same value (within ``1e-10`` relative).
+    Contradicting parallel rows are all kept: quadprog then reports the problem inconsistent.
+    """
+    k = C.shape[1]
+    if k < 2:
+        return None
+    norms = np.sqrt(np.einsum("ij,ij->j", C, C))
+    norms[norms == 0.0] = 1.0
+    unit = C / norms
+    cosine = unit.T @ unit
+    np.fill_diagonal(cosine, 0.0)
+    if not (np.abs(cosine) > PARALLEL).any():
+        return None
+    level = b / norms  # the side of each row along its unit normal
+    keep = np.ones(k, dtype=bool)
+    for i, j in zip(*np.nonzero(np.triu(np.abs(cosine) > PARALLEL, 1))):
+        if not (keep[i] and keep[j]):
+            continue
+        sign = 1.0 if cosine[i, j] > 0 else -1.0
+        close = abs(level[i] - sign * level[j]) <= 1e-10 * max(1.0, abs(level[i]))
+        if i < n_eq and j < n_eq:  # two equalities: the second is redundant if they agree
+            keep[j] = not close
+        elif i < n_eq:  # an inequality n'x >= c beside the equality n'x = e: implied if c <= e
+            keep[j] = not (level[j] <= sign * level[i] + 1e-10 * max(1.0, abs(level[i])))
+        elif sign > 0:  # two inequalities the same way: keep the tighter
+            keep[i if level[i] < level[j] else j] = False
+    return None if keep.all() else keep
+
+
+class _Worker:
+    """A daemon thread that runs quadprog calls, so that the caller can stop waiting.
+
+    Idle workers are kept in a process-wide pool (:func:`_call`): one per thread calling
+    quadprog at the same time, not one per backend.
+    """
+
+    def __init__(self, solve_qp):
+        self._solve_qp = solve_qp
+        self._start, self._done = threading.Semaphore(0), threading.Semaphore(0)
+        self._args: tuple = ()
+        self._out: tuple | BaseException = ()
+        threading.Thread(target=self._loop, daemon=True, name="quadprog").start()
+
+    def _loop(self) -> None:
+        while True:
+            self._start.acquire()
+            try:
+                self._out = self._solve_qp(*self._args)
+            except BaseException as exc:  # handed to the caller, which raises it
+                self._out = exc
+            self._done.release()
+
+    def call(self, time_limit: float, args: tuple) -> tuple | BaseException | None:
+        """quadprog's outputs or exception for ``args``; ``None`` after ``time_limit`` [s]."""
+        self._args = args
+        self._start.release()
+        return self._out if self._done.acquire(timeout=time_limit) else None
+
+
+_IDLE: list[_Worker] = []  # idle workers; list.pop / append are atomic in CPython
+
+
+def _call(solve_qp, time_limit: float | None, *args) -> tuple:
+    """``solve_qp(*args)`` on an idle worker; raises quadprog's exception, or
+    :class:`_TimedOut` (the worker, still inside quadprog, is abandoned). ``time_limit=None``:
+    a direct call on this thread (no bound)."""
+    if time_limit is None:
+        return solve_qp(*args)
+    try:
+        worker = _IDLE.pop()
+    except IndexError:
+        worker = _Worker(solve_qp)
+    out = worker.call(time_limit, args)
+    if out is None:
+        raise _TimedOut(f"quadprog did not return within {time_limit} s (it cycles on "
+                        "degenerate constraints); its thread is abandoned")
+    _IDLE.append(worker)
+    if isinstance(out, BaseException):
+        raise out
+    return out
 
 
 class _Constraints:
@@ -101,14 +226,19 @@ class QuadprogBackend(BackendBase):
 
     name = "quadprog"
     PROFILES = {
-        "default": {"feas_tol": 1e-10, "prox_mu": 1e-3, "prox_tol": 1e-8, "prox_max_iter": 100},
-        "tight": {"feas_tol": 1e-10, "prox_mu": 1e-3, "prox_tol": 1e-10, "prox_max_iter": 500},
+        "default": {"feas_tol": 1e-10, "time_limit": 1.0, "prox_mu": 1e-3, "prox_tol": 1e-8,
+                    "prox_max_iter": 100},
+        "tight": {"feas_tol": 1e-10, "time_limit": 1.0, "prox_mu": 1e-3, "prox_tol": 1e-10,
+                  "prox_max_iter": 500},
     }
 
     def __init__(self, profile: str = "default", **options):
         super().__init__(profile, **options)
-        check_option_names(self.name, self.options, ("feas_tol", *proximal.OPTION_NAMES))
+        check_option_names(self.name, self.options,
+                           ("feas_tol", "time_limit", *proximal.OPTION_NAMES))
         self._quadprog = import_solver("quadprog", self.name)
+        limit = self.options.get("time_limit", 1.0)
+        self._time_limit = None if limit is None else float(limit)
         self._proximal = proximal.ProximalPoint.from_options(self.options)
         self._feas_tol = self.options.get("feas_tol", 1e-10)
 
@@ -148,6 +278,8 @@ class QuadprogBackend(BackendBase):
             return failure(n, m, status, f"quadprog: {exc}")
         except _NotConverged as exc:
             return failure(n, m, Status.MAX_ITER, str(exc), exc.args[1])
+        except _TimedOut as exc:
+            return failure(n, m, Status.NUMERICAL, str(exc))
         self._x = x
         multipliers = constraints.multipliers(lam)
         # Positional: keyword arguments make the dataclass's __init__ cost 0.8 µs more.
@@ -164,15 +296,24 @@ class QuadprogBackend(BackendBase):
         """``(x, lam, iterations)`` under the gathered ``constraints``; raises quadprog's
         ``ValueError`` or :class:`_NotConverged`."""
         C, b, n_eq = constraints.C, constraints.b, constraints.n_eq
-        if proximal.is_positive_definite(self._H):
-            x, _, _, iterations, lam, _ = self._quadprog.solve_qp(self._H, -self._g, C, b, n_eq)
-            return x, lam, iterations.item(0)  # quadprog's main iterations, as an int
+        keep = None if C is None else parallel_rows(C, b, n_eq)
+        if keep is not None:
+            C, b, n_eq = C[:, keep], b[keep], int(keep[:n_eq].sum())
+        solve_qp, time_limit = self._quadprog.solve_qp, self._time_limit
 
         def solve(H, g):
-            x, _, _, _, lam, _ = self._quadprog.solve_qp(H, -g, C, b, n_eq)
-            return x, lam
+            x, _, _, iterations, lam, _ = _call(solve_qp, time_limit, H, -g, C, b, n_eq)
+            if keep is not None:  # a dropped row is implied: multiplier 0
+                full = np.zeros(len(keep))
+                full[keep] = lam
+                lam = full
+            return x, lam, iterations.item(0)  # quadprog's main iterations, as an int
 
-        x, lam, iterations, converged = self._proximal.run(solve, self._H, self._g, x0)
+        if proximal.is_positive_definite(self._H):
+            return solve(self._H, self._g)
+
+        x, lam, iterations, converged = self._proximal.run(lambda H, g: solve(H, g)[:2],
+                                                           self._H, self._g, x0)
         if not converged:
             raise _NotConverged("proximal iterations did not converge", iterations)
         return x, lam, iterations
