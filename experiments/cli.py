@@ -28,6 +28,8 @@ COMMANDS = {
     "pink": ("wbc.experiments.vs_pink", "head-to-head with pink on the Panda"),
     "mink": ("wbc.experiments.vs_mink", "head-to-head with mink on the Panda"),
     "placo": ("wbc.experiments.vs_placo", "head-to-head with placo (C++) on the Panda"),
+    "fuzz": ("wbc.experiments.fuzz", "fuzz campaign: bad stacks, data, states on every backend"),
+    "audit": ("wbc.experiments.audit", "closed-loop limit audits: every robot, exact backends"),
     "reproduce": ("wbc.experiments.reproduce", "every paper study, bench and peers in one "
                   "report (REPORT.md)"),
 }

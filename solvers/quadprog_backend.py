@@ -107,7 +107,7 @@ def parallel_rows(C: np.ndarray, b: np.ndarray, n_eq: int) -> np.ndarray | None:
         return None
     level = b / norms  # the side of each row along its unit normal
     keep = np.ones(k, dtype=bool)
-    for i, j in zip(*np.nonzero(np.triu(np.abs(cosine) > PARALLEL, 1))):
+    for i, j in np.argwhere(np.triu(np.abs(cosine) > PARALLEL, 1)):
         if not (keep[i] and keep[j]):
             continue
         sign = 1.0 if cosine[i, j] > 0 else -1.0

@@ -239,6 +239,13 @@ class FusedWorkspace(Workspace):
         self.fallback_solves += 1
         return super().solve()
 
+    def variable_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """As :meth:`Workspace.variable_bounds`; after a fused tick they are evaluated again
+        (the fused call keeps them inside C; without this they were a previous tick's)."""
+        if self._solved is self._no_qps:
+            self._blocks[0].evaluate()
+        return super().variable_bounds()
+
     def last_qps(self) -> list[tuple]:
         """As :meth:`Workspace.last_qps`; after a fused tick, the QP's arrays are evaluated
         again (the fused call keeps them inside C) and the result is the fused solve's."""
