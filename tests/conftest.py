@@ -19,3 +19,15 @@ settings.load_profile("wbc")
 if "WBC_JIT_CACHE" not in os.environ:
     os.environ["WBC_JIT_CACHE"] = tempfile.mkdtemp(prefix="wbc-test-jit-")
     atexit.register(shutil.rmtree, os.environ["WBC_JIT_CACHE"], ignore_errors=True)
+
+
+def pytest_collection_modifyitems(config, items):
+    """``test_fused_equivalence`` reuses ``test_equivalence``'s functions, parametrised over
+    every backend; the fused path is daqp's only, so the other backends' items are deselected
+    (not collected as skips)."""
+    deselected = [item for item in items if item.module.__name__ == "test_fused_equivalence"
+                  and getattr(item, "callspec", None) is not None
+                  and item.callspec.params.get("backend") != "daqp"]
+    if deselected:
+        config.hook.pytest_deselected(items=deselected)
+        items[:] = [item for item in items if item not in deselected]

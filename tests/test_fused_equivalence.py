@@ -26,9 +26,7 @@ FUSED_ANSWERED = []  # one entry per fused solve of the running test
 
 
 @pytest.fixture(autouse=True)
-def fused_workspaces(monkeypatch, request):
-    if request.node.callspec.params["backend"] != "daqp":
-        pytest.skip("the fused path solves with daqp")
+def fused_workspaces(monkeypatch):
     ordinary = wbc.Stack.workspace
 
     def workspace(stack, backend="daqp", profile="default", jit=False, **options):
