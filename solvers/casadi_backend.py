@@ -118,11 +118,9 @@ class CasadiConicBackend(BackendBase):
         n, m = self.n, self.m
         rows = max(m, 1)  # an inert row when m = 0: see the module docstring
         casadi = self._casadi
-        structure = {"h": casadi.Sparsity.dense(n, n), "a": casadi.Sparsity.dense(rows, n)}
-        with silenced():
-            self._function = casadi.conic(
-                "wbc_qp", self.plugin, structure, {**self.options, "error_on_fail": True}
-            )
+        self._structure = {"h": casadi.Sparsity.dense(n, n),
+                           "a": casadi.Sparsity.dense(rows, n)}
+        self._new_function()
         self._inputs = {
             "h": np.empty((n, n), order="F"), "g": np.empty(n),
             "a": np.zeros((rows, n), order="F"), "lba": np.full(rows, -np.inf),
@@ -134,8 +132,16 @@ class CasadiConicBackend(BackendBase):
         self._update(H, g, A, lA, uA, lb, ub)
         self._bind()
 
+    def _new_function(self) -> None:
+        """A new conic function: a solver with no memory of earlier solves."""
+        with silenced():
+            self._function = self._casadi.conic(
+                "wbc_qp", self.plugin, self._structure, {**self.options, "error_on_fail": True}
+            )
+
     def _bind(self) -> None:
-        """A new buffer (a new solver memory, so a cold start) bound to the numpy arrays."""
+        """A new buffer bound to the numpy arrays (for qpOASES not a cold start: its hot-start
+        state lives in the function, see :meth:`_restart`)."""
         function = self._function
         for name in ("x0", "lam_x0", "lam_a0"):
             self._inputs[name][...] = 0.0
@@ -152,6 +158,13 @@ class CasadiConicBackend(BackendBase):
         arrays, m = self._inputs, self.m
         arrays["h"][...] = H
         arrays["g"][...] = g
+        # A constant objective (H = 0, g = 0: an empty or all-zero undamped level) makes every
+        # feasible point optimal, yet qpOASES reports it unbounded (found by wbc fuzz). The
+        # identity Hessian picks the minimum-norm feasible point, an optimum of the original;
+        # its multipliers are then those of the original's zero objective: 0.
+        self._constant = not (H.any() or g.any())
+        if self._constant:
+            arrays["h"][...] = np.eye(self.n)
         arrays["a"][:m] = A
         arrays["lba"][:m] = lA
         arrays["uba"][:m] = uA
@@ -169,11 +182,14 @@ class CasadiConicBackend(BackendBase):
             stats = self._buffer.stats()
             status = _failure_status(stats)
             message = f"{self.name}: {stats.get('return_status', status.value)}"
-            self._bind()
+            self._restart()
             return failure(n, m, status, message, stats.get("iter_count", -1))
         inputs["x0"][...] = outputs["x"]
         inputs["lam_x0"][...] = outputs["lam_x"]
         inputs["lam_a0"][...] = outputs["lam_a"]
+        if self._constant:
+            return QPResult(x=outputs["x"].copy(), status=Status.SOLVED, y=np.zeros(m),
+                            z=np.zeros(n))
         return QPResult(x=outputs["x"].copy(), status=Status.SOLVED,
                         y=outputs["lam_a"][:m].copy(), z=outputs["lam_x"].copy())
 
@@ -186,7 +202,15 @@ class CasadiConicBackend(BackendBase):
         except RuntimeError:
             if self._fresh:
                 raise
-            self._bind()
+            self._restart()
             self._evaluate()
         finally:
             self._fresh = False
+
+    def _restart(self) -> None:
+        """Forget every earlier solve. A new buffer is not enough: qpOASES keeps its hot-start
+        state with the function, and after a failed solve refuses every later one ("Unable to
+        perform homotopy as previous QP is not solved"), so the function is made anew (about a
+        millisecond, on failed ticks only)."""
+        self._new_function()
+        self._bind()

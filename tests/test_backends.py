@@ -323,3 +323,23 @@ def test_options_override_the_profile():
     backend = make_backend("osqp", "tight", eps_abs=1e-3)
     assert backend.options["eps_abs"] == 1e-3
     assert backend.options["polishing"] is True
+
+
+def test_qpoases_solves_again_after_a_failed_solve():
+    """qpOASES keeps its hot-start state in the CasADi function, not in the buffer: after one
+    failed solve every later one reported "Unable to perform homotopy as previous QP is not
+    solved" (seen on the AMP cascade and the steerable base's ICR QP). The adapter now makes
+    the function anew after a failure."""
+    if "qpoases" not in available_backends():
+        pytest.fail("qpOASES (CasADi's plugin) should be installed with casadi")
+    backend = make_backend("qpoases")
+    H, g, A = np.eye(2), np.zeros(2), np.array([[1.0, 1.0], [1.0, 1.0]])
+    lb, ub = np.full(2, -10.0), np.full(2, 10.0)
+    backend.setup(H, g, A, np.array([1.0, 1.0]), np.array([1.0, 1.0]), lb, ub)
+    assert backend.solve(None).status is Status.SOLVED
+    backend.update(H, g, A, np.array([1.0, 2.0]), np.array([1.0, 2.0]), lb, ub)  # x0+x1 = 1 = 2
+    assert backend.solve(None).status is Status.INFEASIBLE
+    backend.update(H, g, A, np.array([1.0, 1.0]), np.array([1.0, 1.0]), lb, ub)
+    result = backend.solve(None)
+    assert result.status is Status.SOLVED
+    np.testing.assert_allclose(result.x, [0.5, 0.5], atol=1e-9)

@@ -145,15 +145,7 @@ def test_inverse_actuation_model():
     np.testing.assert_allclose(scale_into([2.0, 0.5, 0.1], [1.0, 1.0, 1.0]), [1.0, 0.25, 0.05])
 
 
-# qpOASES (CasADi conic plugin) reports "Unable to perform homotopy as previous QP is not
-# solved" on the ICR QP's second level (tracking under the first level's frozen slacks); the
-# controller then falls back to holding the ICR, so its answers differ.
-UNRELIABLE = {"qpoases": "qpOASES homotopy fails on the ICR QP's second level"}
-
-
-@pytest.mark.parametrize("backend", [
-    pytest.param(b, marks=pytest.mark.xfail(reason=UNRELIABLE[b], strict=True))
-    if b in UNRELIABLE else b for b in available_backends()])
+@pytest.mark.parametrize("backend", available_backends())
 def test_icr_qp_agrees_across_backends(backend):
     base = mpo700()
     reference = SteerableController(base, backend="daqp", profile="tight")

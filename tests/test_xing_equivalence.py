@@ -25,12 +25,7 @@ from wbc.tasks import Bounds, LinearTask
 
 N, N_BASE, R = 10, 3, 3
 TOL = 1e-7
-UNRELIABLE = {
-    **SCALING_UNRELIABLE,
-    "qpoases": "qpOASES returns numerical_error on the last level of some of these cascades, "
-               "and its hot start then refuses every later QP of that level ('Unable to "
-               "perform homotopy as previous QP is not solved')",
-}
+UNRELIABLE = SCALING_UNRELIABLE  # qpOASES's failed hot starts: see tests/test_regressions.py
 
 
 def backends():
