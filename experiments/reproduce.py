@@ -161,6 +161,9 @@ def _peer_rows(out: Path, steps: dict[str, Step]) -> list[str]:
 
 def write_report(out: Path, steps: list[Step], quick: bool) -> Path:
     by_name = {s.name: s for s in steps}
+    for name in [*(f"study {p}" for p in PAPERS), "bench", *PEERS]:
+        by_name.setdefault(name, Step(name, "", [], status="not run",
+                                      reason="not part of this run"))
     sections, summary = [], []
     for name in PAPERS:
         lines, counts = _paper_section(name, out, by_name[f"study {name}"])
