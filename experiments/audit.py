@@ -48,8 +48,9 @@ import numpy as np
 
 import wbc
 import wbc.robots
+from wbc.errors import BackendUnavailableError
 from wbc.sim import Simulation, actuation
-from wbc.solvers import available_backends
+from wbc.solvers import available_backends, make_backend
 from wbc.tasks import (
     ConfigurationLimit,
     FrameTask,
@@ -229,7 +230,16 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=Path("results"))
     args = parser.parse_args(argv)
+    if args.runs < 1 or args.ticks < 1:
+        parser.error("--runs and --ticks must be >= 1")
+    if args.seconds is not None and not args.seconds > 0:
+        parser.error("--seconds must be > 0")
     backends = [b for b in args.backends.split(",") if b]
+    for name in backends:
+        try:
+            make_backend(name)
+        except BackendUnavailableError as err:
+            parser.error(str(err))
     levels = [lv for lv in args.levels.split(",") if lv]
     for level in levels:
         if level not in LEVELS:

@@ -44,7 +44,8 @@ import numpy as np
 
 import wbc
 import wbc.robots
-from wbc.solvers import available_backends
+from wbc.errors import BackendUnavailableError
+from wbc.solvers import available_backends, make_backend
 from wbc.tasks import (
     Bounds,
     ConfigurationLimit,
@@ -102,7 +103,8 @@ def random_structure(rng: np.random.Generator) -> dict:
     n = int(rng.integers(1, 13))
     split = int(rng.integers(0, n)) if n > 1 and rng.random() < 0.5 else 0
     levels = int(rng.integers(1, 5))
-    tasks = [(level, int(rng.integers(1, 13))) for level in range(levels)
+    # 0 rows: an empty task (one in thirteen)
+    tasks = [(level, int(rng.integers(0, 13))) for level in range(levels)
              for _ in range(int(rng.integers(1, 3)))]
     return {"n": n, "split": split, "tasks": tasks, "bounds": bool(rng.random() < 0.8),
             "rows": int(rng.integers(0, 5)), "damping": float(rng.choice([0.0, 1e-6, 1e-3]))}
@@ -329,7 +331,16 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=Path("results"))
     args = parser.parse_args(argv)
+    if args.cases < 1:
+        parser.error("--cases must be >= 1")
+    if args.seconds is not None and not args.seconds > 0:
+        parser.error("--seconds must be > 0")
     backends = [b for b in args.backends.split(",") if b]
+    for name in backends:
+        try:
+            make_backend(name)
+        except BackendUnavailableError as err:
+            parser.error(str(err))
     result = campaign(args.cases, backends, args.seed, args.seconds)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "fuzz.json").write_text(json.dumps(result, indent=1, default=_plain))

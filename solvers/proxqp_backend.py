@@ -27,7 +27,8 @@ box constraints runs to the iteration limit once the model has been solved befor
 Other quirks (ProxQP 0.8): ``WARM_START_WITH_PREVIOUS_RESULT`` before any solve segfaults; with the
 default infeasibility tolerances (``eps_primal_inf = eps_dual_inf = 1e-4``) some feasible LPs are
 declared primal infeasible, so both profiles use ``1e-9``.
-Profiles: ``default`` (``eps_abs = 1e-6``) is sized for control ticks; ``tight`` (``eps_abs =
+Profiles: ``default`` (``eps_abs = 1e-6``, at most 300 outer × 100 inner iterations, so a tick
+is bounded: < 1 s on the fuzz campaign's worst scaling) is sized for control ticks; ``tight`` (``eps_abs =
 1e-10`` with ProxQP's duality-gap test, without which answers with ``eps_abs = 1e-10`` missed
 complementarity by 2e-7) reaches ≈3e-10 on the tests.
 Degenerate problems (optimum at a vertex with zero multipliers, as in the levels after a
@@ -55,8 +56,12 @@ class ProxqpBackend(BackendBase):
 
     name = "proxqp"
     PROFILES = {
+        # max_iter / max_iter_in bound a tick: ProxQP's own (10⁴ outer × 1500 inner) let one
+        # badly scaled level (H up to 1e13, found by wbc fuzz) iterate for 48 s; 300 × 100
+        # stops it in ≈ 0.4 s, and a control tick needs ~20 outer iterations cold.
         "default": {"eps_abs": 1e-6, "eps_rel": 0.0, "eps_primal_inf": 1e-9,
-                    "eps_dual_inf": 1e-9, "warm_max_iter": 100},
+                    "eps_dual_inf": 1e-9, "max_iter": 300, "max_iter_in": 100,
+                    "warm_max_iter": 100},
         # eps_abs below 1e-10 fails (max_iter, "infeasible") on degenerate cascade levels whose
         # feasible set is a point; the duality-gap test is what makes 1e-10 accurate.
         "tight": {"eps_abs": 1e-10, "eps_rel": 0.0, "check_duality_gap": True,

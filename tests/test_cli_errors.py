@@ -104,6 +104,12 @@ BAD_ARGUMENTS = [
     (["mink", "--backends", "cplex"], "['cplex'] not available"),
     (["placo", "--ticks", "0"], "--ticks must be >= 1"),
     (["reproduce", "--bogus"], "unrecognized arguments: --bogus"),
+    (["fuzz", "--cases", "0"], "--cases must be >= 1"),
+    (["fuzz", "--seconds", "-1"], "--seconds must be > 0"),
+    (["fuzz", "--backends", "nosuch"], "unknown or unavailable QP backend 'nosuch'"),
+    (["audit", "--ticks", "0"], "--runs and --ticks must be >= 1"),
+    (["audit", "--levels", "torque"], "unknown level 'torque'"),
+    (["audit", "--backends", "nosuch"], "unknown or unavailable QP backend 'nosuch'"),
     (["study"], "the study NAME is missing"),
     (["study", "nosuch"], "unknown study 'nosuch'"),
 ]

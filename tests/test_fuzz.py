@@ -1,0 +1,74 @@
+"""wbc fuzz: a fast subset of the campaign finds no defect on any backend (the fused tick
+included), the classifier flags every kind of defect, and the CLI writes its contract."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import wbc
+from wbc.experiments import fuzz
+from wbc.solvers import available_backends
+
+
+@pytest.mark.parametrize("backend", available_backends())
+def test_stack_cases_have_no_defect(backend):
+    cases = list(fuzz.stack_cases(backend, seed=1, structures=4, draws=1))
+    assert len(cases) == 4 * fuzz.TICKS
+    defects = [(c, d, m) for c, _, d, m in cases if d]
+    assert defects == []
+    # the injected defects do reach the classes: some refused, some solved
+    classes = {outcome for _, outcome, _, _ in cases}
+    assert {"error", "success"} <= classes
+
+
+def test_robot_cases_have_no_defect_on_the_fused_tick():
+    cases = list(fuzz.robot_cases("daqp", seed=1, ticks=12))
+    assert [d for *_, d, _ in cases if d] == []
+    assert {c["robot"] for c, *_ in cases} == set(wbc.robots.names())
+
+
+class _Solved:
+    status = wbc.Status.SOLVED
+
+    def __init__(self, x):
+        self.x = np.asarray(x, dtype=float)
+
+
+BOUNDS = (np.array([-1.0, -1.0]), np.array([1.0, 1.0]))
+
+
+@pytest.mark.parametrize("tick, outcome, defect", [
+    (lambda: (_Solved([0.5, 1.0]), BOUNDS), "success", None),
+    (lambda: (_Solved([0.5, 1.0 + 1e-6]), BOUNDS), "defect", "out_of_bounds"),
+    (lambda: (_Solved([np.nan, 0.0]), BOUNDS), "defect", "non_finite_x"),
+    (lambda: 1 / 0, "defect", "exception"),
+    (lambda: (_ for _ in ()).throw(wbc.ShapeError("x: bad shape")), "error", None),
+])
+def test_classify_flags_each_defect(tick, outcome, defect):
+    got, flagged, _ = fuzz.classify(tick)
+    assert (got, flagged) == (outcome, defect)
+
+
+def test_classify_flags_a_hang(monkeypatch):
+    monkeypatch.setattr(fuzz, "HANG_S", 0.01)
+    import time
+
+    def slow():
+        time.sleep(0.05)
+        return _Solved([0.0, 0.0]), BOUNDS
+
+    assert fuzz.classify(slow)[:2] == ("defect", "hang")
+
+
+def test_cli_writes_the_contract(tmp_path):
+    from wbc.experiments.cli import main
+
+    assert main(["fuzz", "--cases", "60", "--backends", "daqp", "--out", str(tmp_path)]) == 0
+    result = json.loads((tmp_path / "fuzz.json").read_text())
+    assert result["cases"] >= 50 and result["defects"] == []
+    assert set(result["outcomes"]) >= {"daqp"}
+    assert sum(result["outcomes"]["daqp"].values()) > 0
+    assert "| backend |" in (tmp_path / "fuzz.md").read_text()
