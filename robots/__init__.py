@@ -85,3 +85,6 @@ __all__ = [
 from .steerable_control import SteerableController, SteerableDrive  # noqa: E402
 
 __all__ += ["SteerableController", "SteerableDrive"]
+from .omni import ARM_MASS, PLATFORM_MASS, normal_forces, system_com  # noqa: E402
+
+__all__ += ["ARM_MASS", "PLATFORM_MASS", "normal_forces", "system_com"]

@@ -13,6 +13,15 @@ the base frame, torque [N m]). ``J`` has full column rank; ``Jᵀ`` has a one-di
 space — the torque redundancy the paper exploits.
 
 Velocity coordinates: body twist ``(v_x, v_y, ω)`` in the base frame.
+
+The paper's masses and the wheels' load:
+
+* :data:`PLATFORM_MASS` (15 kg) and :data:`ARM_MASS` (30 kg) are the paper's; the catalogue's
+  ``"omni4_arm6"`` carries a UR10 stand-in (about 32.7 kg). :func:`system_com` gives the whole
+  system's mass (45 kg) and centre of mass with the paper's masses, the arm's 30 kg distributed
+  like the stand-in's links, so that the centre of mass moves with the arm.
+* :func:`normal_forces` splits the weight over the wheels (minimum-norm solution of the three
+  equilibrium equations, i.e. an equal-stiffness suspension).
 """
 
 from __future__ import annotations
@@ -20,8 +29,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pinocchio as pin
 
-from wbc.errors import InvalidValueError
+from wbc.errors import InvalidValueError, ShapeError
 
 from .planar_base import (
     HOLONOMIC_MAP,
@@ -31,7 +41,15 @@ from .planar_base import (
     require_positive,
 )
 
-__all__ = ["OmniBase", "omni4_octagon"]
+__all__ = ["ARM_MASS", "PLATFORM_MASS", "OmniBase", "normal_forces", "omni4_octagon",
+           "system_com"]
+
+#: mass of the paper's platform [kg] ("about 15 kg").
+PLATFORM_MASS = 15.0
+#: mass of the paper's arm, a Mitsubishi RV-E3 [kg] ("about 30 kg").
+ARM_MASS = 30.0
+#: standard gravity [m/s²].
+GRAVITY = 9.81
 
 
 class OmniBase(PlanarBase):
@@ -80,6 +98,11 @@ class OmniBase(PlanarBase):
     def n_wheels(self) -> int:
         return self.angles.size
 
+    @property
+    def wheel_positions(self) -> np.ndarray:
+        """Contact points ``L (cos α_i, sin α_i)`` [m] in the base frame, shape (N, 2)."""
+        return self.distance * np.column_stack([np.cos(self.angles), np.sin(self.angles)])
+
     def inverse(self, base_velocity) -> np.ndarray:
         """Wheel rates ``J ξ`` [rad/s] for the body twist ξ (base frame)."""
         return self.jacobian @ as_vector(base_velocity, 3, "base_velocity")
@@ -114,3 +137,93 @@ def omni4_octagon() -> OmniBase:
         v_max=[1.0, 1.0, 1.0],
         a_max=[1.0, 1.0, 1.0],
     )
+
+
+def normal_forces(wheel_xy, com_xy, mass: float, g: float = GRAVITY) -> np.ndarray:
+    """Normal (vertical) contact forces ``f_i`` [N] of wheels on flat ground, at rest.
+
+    Static equilibrium of the whole system gives three equations in the N forces: the vertical
+    forces carry the weight (``Σ f_i = m g``, the paper's eq. 8 with weight ``m g``) and their
+    moments about the base's x and y axes balance the weight's (``Σ f_i x_i = m g x_c``,
+    ``Σ f_i y_i = m g y_c``). With four wheels the system is statically indeterminate (one
+    force combination is free). We take the minimum-norm solution ``f = A⁺ b``: it is the one
+    of a rigid platform on N equally stiff suspensions (the deflections, hence the forces, are
+    an affine function of the contact position — exactly the row space of ``A``), the standard
+    choice when nothing is known about the springs.
+
+    Args:
+        wheel_xy: contact points ``(x_i, y_i)`` [m], shape (N, 2), N ≥ 3, not all on one line
+            (e.g. :attr:`OmniBase.wheel_positions`).
+        com_xy: horizontal position of the centre of mass [m], shape (2,) (or (3,): z is
+            ignored), in the same frame as ``wheel_xy``.
+        mass: total mass [kg], > 0.
+        g: gravity [m/s²], > 0.
+
+    Returns:
+        ``f`` [N], shape (N,), all ≥ 0.
+
+    Raises:
+        ShapeError, NonFiniteError: malformed input.
+        InvalidValueError: ``mass`` or ``g`` not positive; contacts on one line; a force of the
+            minimum-norm solution is negative — the ground would have to pull a wheel down:
+            that wheel lifts (with four wheels this happens once the centre of mass leaves the
+            diamond spanned by the contacts' mid-edges, before the platform tips over). We raise
+            rather than return a meaningless split.
+    """
+    wheel_xy = np.asarray(wheel_xy, dtype=float)
+    if wheel_xy.ndim != 2 or wheel_xy.shape[1] != 2 or wheel_xy.shape[0] < 3:
+        raise ShapeError(f"wheel_xy must have shape (N, 2) with N >= 3, got {wheel_xy.shape}")
+    com = np.asarray(com_xy, dtype=float)
+    if com.shape not in ((2,), (3,)):
+        raise ShapeError(f"com_xy must have shape (2,) (or (3,)), got {com.shape}")
+    as_vector(wheel_xy.ravel(), wheel_xy.size, "wheel_xy")
+    com = as_vector(com[:2], 2, "com_xy")
+    if not (np.isfinite(mass) and mass > 0):
+        raise InvalidValueError(f"mass must be a positive number [kg], got {mass!r}")
+    if not (np.isfinite(g) and g > 0):
+        raise InvalidValueError(f"g must be a positive number [m/s²], got {g!r}")
+    A = np.vstack([np.ones(len(wheel_xy)), wheel_xy.T])
+    if np.linalg.matrix_rank(A) < 3:
+        raise InvalidValueError("wheel_xy: the contact points lie on one line, the platform is "
+                                "not supported")
+    weight = mass * g
+    forces = np.linalg.pinv(A) @ (weight * np.array([1.0, com[0], com[1]]))
+    if forces.min() < -1e-9 * weight:
+        raise InvalidValueError(
+            f"com_xy = {com}: the minimum-norm normal forces {forces.round(3)} N include a "
+            "negative one — a wheel would lift (the centre of mass is too far out)")
+    return np.maximum(forces, 0.0)
+
+
+def system_com(robot, q, frame: str = "world") -> tuple[float, np.ndarray]:
+    """Mass [kg] and centre of mass [m] of the paper's platform + arm in configuration ``q``.
+
+    The platform weighs :data:`PLATFORM_MASS` with its centre of mass where the robot's base
+    model puts it (``robot.base.com``); the arm weighs :data:`ARM_MASS`, its centre of mass that
+    of the robot's arm model (all its links, its fixed root link included) for the arm joints of
+    ``q`` — i.e. the paper's 30 kg distributed like the stand-in arm's links.
+
+    Args:
+        robot: a :class:`~wbc.robots.MobileManipulator` on an omni base (``"omni4_arm6"``).
+        q: configuration ``[x, y, θ, arm joints]``, shape (nq,).
+        frame: ``"world"`` or ``"base"`` (the frame of :func:`normal_forces`' ``wheel_xy``).
+
+    Returns:
+        ``(mass, com)``: 45.0 kg and the (3,) centre of mass.
+    """
+    if frame not in ("world", "base"):
+        raise InvalidValueError(f"frame must be 'world' or 'base', got {frame!r}")
+    q = as_vector(q, robot.nq, "q")
+    arm = robot.arm.model
+    data = arm.createData()
+    pin.forwardKinematics(arm, data, q[3:])
+    # every body of the arm, the root link (on the universe joint) included
+    arm_moment = sum((inertia.mass * data.oMi[i].act(inertia.lever)
+                      for i, inertia in enumerate(arm.inertias)), np.zeros(3))
+    arm_com = robot.mount.act(arm_moment / sum(inertia.mass for inertia in arm.inertias))
+    mass = PLATFORM_MASS + ARM_MASS
+    com = (PLATFORM_MASS * np.asarray(robot.base.com, dtype=float) + ARM_MASS * arm_com) / mass
+    if frame == "world":
+        c, s = math.cos(q[2]), math.sin(q[2])
+        com = np.array([q[0] + c * com[0] - s * com[1], q[1] + s * com[0] + c * com[1], com[2]])
+    return mass, com

@@ -679,3 +679,7 @@ from .reference_xing import AMPInfo, amp, auxiliary_projector, base_transition, 
 __all__ += ["AMPInfo", "amp", "auxiliary_projector", "base_transition", "manipulability_acceleration", "manipulability_gradient", "manipulability_hessian", "manipulability_hessian_product", "scaling_factor", "traditional"]  # noqa: E501
 from .reference_sorour import arm_compensation, sharing_mobility, task_sharing_factor, task_sharing_velocity  # noqa: E402, E501, I001
 __all__ += ["arm_compensation", "sharing_mobility", "task_sharing_factor", "task_sharing_velocity"]  # noqa: E501
+from .reference_omni import DISTRIBUTION_METHODS, friction_utilisation, torque_distribution, torque_null_space  # noqa: E402, E501, I001
+__all__ += ["DISTRIBUTION_METHODS", "friction_utilisation", "torque_distribution", "torque_null_space"]  # noqa: E501
+from .reference_petric_arm import PETRIC_LAMBDA, damped_projector, dls_arm_velocity, projector_leak  # noqa: E402, E501, I001
+__all__ += ["PETRIC_LAMBDA", "damped_projector", "dls_arm_velocity", "projector_leak"]  # noqa: E501
