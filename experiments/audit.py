@@ -157,7 +157,7 @@ def audit(runs: int, backends: list[str], levels: list[str], ticks: int = 30, se
     """About ``runs`` runs spread over robots × backends × levels; stops early after
     ``seconds`` [s]. Returns the JSON-ready result."""
     names = wbc.robots.names()
-    per_cell = max(1, runs // (len(names) * len(backends) * len(levels)))
+    per_cell = max(1, -(-runs // (len(names) * len(backends) * len(levels))))  # rounded up
     cells: dict[str, dict] = {}
     start = time.perf_counter()
     for level in levels:

@@ -275,15 +275,17 @@ class _Commanded:
 def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | None = None):
     """Run about ``cases`` cases spread over ``backends`` (a sixth of them robot ticks);
     stops early after ``seconds`` [s]. Returns the JSON-ready result."""
-    per_backend = max(1, cases // len(backends))
+    per_backend = -(-cases // len(backends))  # rounded up: at least ``cases`` in all
     robot_ticks = max(1, per_backend // 6 // len(wbc.robots.names()))
     stack_ticks = per_backend - robot_ticks * len(wbc.robots.names())
     draws = 2
-    structures = max(1, stack_ticks // (draws * TICKS))
+    structures = max(1, -(-stack_ticks // (draws * TICKS)))
     outcomes: dict[str, dict[str, int]] = {}
     defects: list[dict] = []
     total, start = 0, time.perf_counter()
     for backend in backends:
+        if seconds is not None and time.perf_counter() - start > seconds:
+            break
         for case, outcome, defect, message in _chain(
                 stack_cases(backend, seed, structures, draws), robot_cases(backend, seed,
                                                                             robot_ticks)):

@@ -95,6 +95,19 @@ def failure(n: int, m: int, status: Status, message: str, iterations: int = -1) 
     )
 
 
+def empty_sides(lower: np.ndarray, upper: np.ndarray) -> bool:
+    """Whether some pair of sides admits nothing: ``lower > upper``, ``lower = +inf`` or
+    ``upper = -inf`` (a joint outside its limits gives such bounds). Backends whose solver
+    does not report these as infeasible check with this and report INFEASIBLE themselves."""
+    return bool(np.any(lower > upper) or np.any(lower == np.inf) or np.any(upper == -np.inf))
+
+
+def empty_failure(name: str, n: int, m: int) -> QPResult:
+    """The INFEASIBLE result of a problem with :func:`empty_sides`."""
+    return failure(n, m, Status.INFEASIBLE, f"{name}: a lower side above its upper one, or an "
+                   "infinite side on the wrong side (lower = +inf, upper = -inf)", 0)
+
+
 class BackendBase:
     """Common part of the persistent QP backends (see :class:`wbc.qp.Backend`).
 

@@ -45,7 +45,7 @@ import numpy as np
 from wbc.errors import BackendUnavailableError
 from wbc.qp import QPResult, Status
 
-from .base import BackendBase, failure, import_solver, silenced
+from .base import BackendBase, empty_failure, empty_sides, failure, import_solver, silenced
 
 PLUGIN_PROFILES: dict[str, dict[str, dict]] = {
     # Without enableRegularisation qpOASES runs out of working-set recalculations on a singular
@@ -170,9 +170,13 @@ class CasadiConicBackend(BackendBase):
         arrays["uba"][:m] = uA
         arrays["lbx"][...] = lb
         arrays["ubx"][...] = ub
+        # CasADi's conic asserts nonempty sides and raises; that is an infeasible problem
+        self._empty = empty_sides(lA, uA) or empty_sides(lb, ub)
 
     def _solve(self, warm_start) -> QPResult:
         n, m = self.n, self.m
+        if self._empty:
+            return empty_failure(self.name, n, m)
         inputs, outputs = self._inputs, self._outputs
         if warm_start is not None:
             inputs["x0"][...] = warm_start

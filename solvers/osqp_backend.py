@@ -30,7 +30,7 @@ import numpy as np
 
 from wbc.qp import QPResult, Status
 
-from .base import BackendBase, failure, import_solver, silenced
+from .base import BackendBase, empty_failure, empty_sides, failure, import_solver, silenced
 from .forms import StackedConstraints, UpperTriangle
 
 _STATUS = {  # "solved inaccurate" (tolerances missed by up to 10x) is a failure
@@ -67,9 +67,10 @@ class OsqpBackend(BackendBase):
         self._A = np.empty(self._pattern.nnz)
         self._load(H, A, lA, uA, lb, ub)
         self._solver = self._osqp.OSQP()
-        self._solver.setup(
+        self._solver.setup(  # with empty sides (see _load) OSQP is set up on u = max(l, u)
             self._triu.matrix(self._P), g, self._pattern.matrix(self._A),
-            self._stack.l, self._stack.u, verbose=False, **self.options,
+            self._stack.l, np.maximum(self._stack.l, self._stack.u), verbose=False,
+            **self.options,
         )
         self._status = {int(code): _STATUS.get(code.name, Status.NUMERICAL)
                         for code in self._osqp.SolverStatus}
@@ -78,13 +79,20 @@ class OsqpBackend(BackendBase):
         self._triu.gather(H, self._P)
         self._stack.load(A, lA, uA, lb, ub)
         self._stack.gather(self._index, self._A)
+        # OSQP refuses data with a lower side above its upper one: setup raises, and update
+        # prints an error, returns None and keeps the previous data, which solve() then solves
+        # as if nothing were wrong. An upper side of -inf it takes for -1e30 and "solves".
+        self._empty = empty_sides(self._stack.l, self._stack.u)
 
     def _update(self, H, g, A, lA, uA, lb, ub) -> None:
         self._load(H, A, lA, uA, lb, ub)
-        self._solver.update(q=g, l=self._stack.l, u=self._stack.u, Px=self._P, Ax=self._A)
+        if not self._empty:
+            self._solver.update(q=g, l=self._stack.l, u=self._stack.u, Px=self._P, Ax=self._A)
 
     def _solve(self, warm_start) -> QPResult:
         n, m = self.n, self.m
+        if self._empty:
+            return empty_failure(self.name, n, m)
         if warm_start is not None:
             self._solver.warm_start(x=np.asarray(warm_start, dtype=float))
         with self._quiet():

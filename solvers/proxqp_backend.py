@@ -27,10 +27,10 @@ box constraints runs to the iteration limit once the model has been solved befor
 Other quirks (ProxQP 0.8): ``WARM_START_WITH_PREVIOUS_RESULT`` before any solve segfaults; with the
 default infeasibility tolerances (``eps_primal_inf = eps_dual_inf = 1e-4``) some feasible LPs are
 declared primal infeasible, so both profiles use ``1e-9``.
-Profiles: ``default`` (``eps_abs = 1e-6``, at most 300 outer × 100 inner iterations, so a tick
-is bounded: < 1 s on the fuzz campaign's worst scaling) is sized for control ticks; ``tight`` (``eps_abs =
-1e-10`` with ProxQP's duality-gap test, without which answers with ``eps_abs = 1e-10`` missed
-complementarity by 2e-7) reaches ≈3e-10 on the tests.
+Profiles: ``default`` (``eps_abs = 1e-6``, at most 300 outer × 100 inner iterations, so a
+tick is bounded: < 1 s on the fuzz campaign's worst scaling) is sized for control ticks;
+``tight`` (``eps_abs = 1e-10`` with ProxQP's duality-gap test, without which answers with
+``eps_abs = 1e-10`` missed complementarity by 2e-7) reaches ≈3e-10 on the tests.
 Degenerate problems (optimum at a vertex with zero multipliers, as in the levels after a
 task-scaling LP) converge only like the square root of the tolerance: 1e-6 to 1e-4 off in the SNS
 cascades of ``tests/test_equivalence.py``; active-set backends (daqp, qpoases, quadprog) are exact
@@ -43,7 +43,14 @@ import numpy as np
 
 from wbc.qp import QPResult, Status
 
-from .base import BackendBase, check_option_names, failure, import_solver
+from .base import (
+    BackendBase,
+    check_option_names,
+    empty_failure,
+    empty_sides,
+    failure,
+    import_solver,
+)
 from .forms import StackedConstraints
 
 
@@ -98,6 +105,8 @@ class ProxqpBackend(BackendBase):
         self._H[...] = H
         self._g[...] = g
         self._stack.load(A, lA, uA, lb, ub)
+        # ProxQP does not check the sides: with lower > upper it "solves" outside them
+        self._empty = empty_sides(self._stack.l, self._stack.u)
 
     def _build(self) -> None:
         """A new model on the loaded data (the next solve starts cold)."""
@@ -126,6 +135,8 @@ class ProxqpBackend(BackendBase):
 
     def _solve(self, warm_start) -> QPResult:
         n, m = self.n, self.m
+        if self._empty:
+            return empty_failure(self.name, n, m)
         guess = self._proxqp.InitialGuess
         if not self._fresh:
             status = self._run(guess.WARM_START_WITH_PREVIOUS_RESULT,

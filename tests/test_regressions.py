@@ -3,6 +3,9 @@
 1. quadprog looped forever on degenerate constraints (duplicated rows of ``C' x >= b``): the
    adapter drops parallel rows before the call, and bounds every call in time.
 2. ``FusedWorkspace.variable_bounds()`` returned a previous tick's bounds after a fused tick.
+3. OSQP, updated with a lower side above its upper one (a joint outside its limits), kept the
+   previous tick's data and reported that old problem's solution as solved; an upper bound of
+   -inf it took for -1e30 and "solved" (x = -inf after clipping).
 """
 
 from __future__ import annotations
@@ -167,3 +170,24 @@ def test_proxqp_tick_is_bounded_on_a_badly_scaled_level():
 
     for case, _, defect, message in fuzz.stack_cases("proxqp", seed=1, structures=1, draws=1):
         assert defect is None, (case["tick"], message)
+
+
+@pytest.mark.parametrize("backend", available_backends())
+@pytest.mark.parametrize("bad", ["crossed", "upper_minus_inf"])
+def test_an_empty_box_after_a_solved_tick_is_not_solved(backend, bad):
+    """Every backend reports an empty feasible set as a failure, never the previous answer."""
+    n = 3
+    H, g, A = np.eye(n), -np.ones(n), np.ones((1, n))
+    lA, uA = np.array([-10.0]), np.array([10.0])
+    lb, ub = -np.ones(n), np.ones(n)
+    qp = make_backend(backend)
+    qp.setup(H, g, A, lA, uA, lb, ub)
+    assert qp.solve().status is wbc.Status.SOLVED
+    lb, ub = lb.copy(), ub.copy()
+    if bad == "crossed":
+        lb[1], ub[1] = 2.0, -2.0
+    else:
+        lb[1], ub[1] = -np.inf, -np.inf
+    qp.update(H, g, A, lA, uA, lb, ub)
+    result = qp.solve()
+    assert result.status is not wbc.Status.SOLVED, result.x
