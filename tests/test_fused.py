@@ -12,7 +12,7 @@ import pytest
 from helpers import assert_kkt, kkt_residuals
 
 import wbc
-from wbc.fused import FusedWorkspace, fused_function, why_not_fused
+from wbc.fused import FROZEN_BAND, FusedWorkspace, fused_function, why_not_fused
 from wbc.tasks import (
     Bounds,
     ConfigurationLimit,
@@ -113,18 +113,126 @@ def test_an_infeasible_tick_keeps_its_status_and_message(workspaces, crossing):
     assert fused.fallback_solves == failures + 1
 
 
+def scaling_stack() -> wbc.Stack:
+    stack = wbc.Stack(3, damping=0.1)
+    stack.add(LinearTask(np.eye(3)[:1], [1.0], name="a"), priority=0, scaling=True)
+    stack.constrain(Bounds(-np.ones(3), np.ones(3), name="box"))
+    return stack
+
+
 def test_what_is_not_fused_says_why():
-    two_levels = wbc.Stack(3, damping=0.1)
-    two_levels.add(LinearTask(np.eye(3)[:1], [1.0], name="a"), priority=0)
-    two_levels.add(LinearTask(np.eye(3), np.ones(3), name="b"), priority=1)
-    assert "2 QPs" in why_not_fused(two_levels.compile(), {})
-    undamped = wbc.Stack(3).add(LinearTask(np.eye(3), np.ones(3), name="a"))
-    assert "min-norm" in why_not_fused(undamped.compile(), {})  # ρ = 0: a min-norm level
+    scaling = scaling_stack().compile()
+    assert "task-scaling LPs (scaling LP of level 0" in why_not_fused(scaling, {})
     single = one_qp_stack().compile()
     assert why_not_fused(single, {"primal_tol": 1e-9}) is None
     assert "sing_tol" in why_not_fused(single, {"sing_tol": 1e-9})
+    undamped = wbc.Stack(3).add(LinearTask(np.eye(3), np.ones(3), name="a"))
+    assert why_not_fused(undamped.compile(), {}) is None  # ρ = 0: with its min-norm level
     with pytest.raises(wbc.WbcError, match="cannot fuse"):
-        fused_function(two_levels.compile(), {})
+        fused_function(scaling, {})
+
+
+# ----------------------------------------------------------------------------- cascades
+def cascade_stack() -> wbc.Stack:
+    """Three levels and the min-norm level (level 2 is undamped): a task and a soft row at
+    level 0, a second task at level 1 (which may repeat a row of level 0: dependent frozen
+    rows), at level 2 a full-rank pull towards ``x_above + target`` (Stack.x_above()), after
+    which the frozen rows leave the min-norm level a single point; a hard row and bounds."""
+    stack = wbc.Stack(N, damping={0: 0.05, 1: 0.1})
+    x = stack.variables.symbol
+    target = stack.parameter("pull.target", N, np.zeros(N))
+    stack.add(LinearTask(np.ones((3, N)), np.ones(3), name="task"), priority=0)
+    stack.add(LinearConstraint(np.ones((1, N)), [-1.0], [1.0], name="soft"), weight=2.0)
+    stack.add(LinearTask(np.ones((2, N)), np.ones(2), name="second"), priority=1)
+    stack.add(wbc.Cost(x - stack.x_above(), target=target, name="pull"), priority=2)
+    stack.constrain(LinearConstraint(np.ones((1, N)), [-1.0], [1.0], name="row"))
+    stack.constrain(Bounds(-np.ones(N), np.ones(N), name="box"))
+    return stack
+
+
+def cascade_instance(rng, active: bool, dependent: bool) -> dict:
+    data = instance(rng, active)
+    data.pop("floor.lower", None)
+    second = rng.standard_normal((2, N))
+    if dependent:  # level 1 repeats a row of level 0 (and conflicts with it)
+        second[0] = data["task.A"][0]
+    data.update({"second.A": second, "second.b": 3 * rng.standard_normal(2),
+                 "pull.target": rng.standard_normal(N)})
+    return data
+
+
+@pytest.fixture(scope="module")
+def cascade_workspaces():
+    """(compiled C, virtual machine, ordinary daqp) on the cascade, tight profile."""
+    compiled = cascade_stack().compile()
+    assert [b.kind for b in compiled.blocks] == ["level"] * 3 + ["min_norm"]
+    return (FusedWorkspace(compiled, "tight"), FusedWorkspace(compiled, "tight", compile=False),
+            wbc.Workspace(compiled, "daqp", "tight"))
+
+
+@pytest.mark.parametrize("active", [False, True])
+@pytest.mark.parametrize("dependent", [False, True])
+def test_a_fused_cascade_equals_the_ordinary_one(cascade_workspaces, active, dependent):
+    """Every level's x agrees with the ordinary cascade (frozen rows rank-compressed, exact)
+    to 1e-8, C with the virtual machine to 1e-12; every fused QP meets its KKT conditions;
+    the frozen task rows hold from level to level to the band (and daqp's primal_tol)."""
+    rng = np.random.default_rng(10 + 2 * active + dependent)
+    fused = cascade_workspaces[0]
+    fallbacks = fused.fallback_solves
+    for _ in range(10):
+        data = cascade_instance(rng, active, dependent)
+        solutions = []
+        for ws in cascade_workspaces:
+            solution = ws.set(**data).solve()
+            assert solution.ok, solution.message
+            solutions.append([level.x.copy() for level in solution.levels])
+            assert_kkt(ws, tol=1e-8)
+        c, vm, ordinary = solutions
+        assert len(c) == len(ordinary) == 4
+        np.testing.assert_allclose(c, vm, atol=1e-12)
+        np.testing.assert_allclose(c, ordinary, atol=1e-8)
+        assert np.all(np.abs(c[-1]) <= data["box.upper"])  # clipped exactly into the bounds
+        J0 = data["task.A"] / np.linalg.norm(data["task.A"], axis=1, keepdims=True)
+        for above, x in zip(c[:-1], c[1:], strict=True):  # kept where the level above left them
+            c0 = J0 @ above
+            assert np.all(np.abs(J0 @ x - c0) <= FROZEN_BAND * (1 + np.abs(c0)) + 1e-10)
+    assert fused.fallback_solves == fallbacks  # the generated daqp solved every tick
+    labels = [label for label, _, _ in fused.last_qps()]
+    assert labels == [level.label for level in fused.solve().levels]
+    assert fused.solve().levels[1].frozen_band == FROZEN_BAND
+
+
+def test_a_lower_level_that_fails_falls_back_to_the_ordinary_partial_solution():
+    """A level-local constraint at level 1 contradicts level 0's optimum: the generated daqp
+    fails there, and the tick is the ordinary path's: infeasible, partial (level 0's x), with
+    its message and conflict."""
+    stack = wbc.Stack(N, damping=0.1)
+    stack.add(LinearTask(np.eye(N)[:1], [0.5], name="first"), priority=0)
+    stack.add(LinearTask(np.eye(N), np.ones(N), name="posture"), priority=1)
+    stack.constrain(LinearConstraint(np.eye(N)[:1], [-np.inf], [0.0], name="local"), levels=1)
+    compiled = stack.compile()
+    expected = wbc.Workspace(compiled, "daqp", "tight").solve()
+    assert expected.status is wbc.Status.INFEASIBLE and expected.partial
+    for ws in (FusedWorkspace(compiled, "tight"), FusedWorkspace(compiled, "tight",
+                                                                 compile=False)):
+        solution = ws.solve()
+        assert ws.fallback_solves == 1
+        assert solution.status is expected.status and solution.partial
+        assert solution.message == expected.message and solution.conflict == expected.conflict
+        np.testing.assert_array_equal(solution.x, expected.x)
+        np.testing.assert_allclose(solution.x[0], 0.5 / 1.01)
+
+
+def test_an_undamped_level_takes_the_ordinary_path():
+    """The generated daqp has no proximal iterations: a level with a singular Hessian (ρ = 0,
+    rank-deficient task) fails its setup and the tick is solved by the ordinary path."""
+    stack = wbc.Stack(N)
+    stack.add(LinearTask(np.eye(N)[:2], [0.5, 0.2], name="first"), priority=0)
+    compiled = stack.compile()
+    ws = FusedWorkspace(compiled, "tight", compile=False)
+    solution = ws.solve()
+    assert solution.ok and ws.fallback_solves == 1
+    np.testing.assert_allclose(solution.x, np.r_[0.5, 0.2, np.zeros(N - 2)], atol=1e-9)
 
 
 # ----------------------------------------------------------------------------- controller
@@ -172,11 +280,13 @@ def test_daqp_controllers_are_fused_by_default_and_agree_with_the_ordinary_path(
     assert np.linalg.norm(robot.frame_pose(q, "ee")[:3, 3] - target[:3, 3]) < 0.05
 
 
-def test_multi_level_and_other_backends_keep_todays_path(robot):
-    cascade = wbc.Controller(robot, panda_stack(robot, levels=2), dt=DT, jit=False)
-    assert not cascade.fused and "2 QPs" in cascade.fused_reason
+def test_scaling_levels_and_other_backends_keep_todays_path(robot):
+    stack = panda_stack(robot, levels=2)
+    stack.add(LinearTask(np.eye(robot.nv)[:1], [0.1], name="joint"), priority=2, scaling=True)
+    scaling = wbc.Controller(robot, stack, dt=DT, jit=False)
+    assert not scaling.fused and "task-scaling LPs" in scaling.fused_reason
     with pytest.raises(wbc.WbcError, match="cannot be fused"):
-        wbc.Controller(robot, panda_stack(robot, levels=2), dt=DT, fused=True, jit=False)
+        wbc.Controller(robot, stack, dt=DT, fused=True, jit=False)
     quadprog = wbc.Controller(robot, panda_stack(robot), backend="quadprog", dt=DT, jit=False)
     assert not quadprog.fused and "quadprog" in quadprog.fused_reason
     with pytest.raises(wbc.WbcError, match="fused must be"):
@@ -230,15 +340,43 @@ def test_bad_input_is_refused_before_any_write(controllers):
     np.testing.assert_array_equal(fused.workspace.p, p)
 
 
-def test_a_fused_tick_allocates_nothing_in_steady_state(robot, controllers):
+@pytest.fixture(scope="module")
+def cascade_controllers(robot):
+    """(fused, ordinary) controllers of the two-level Panda stack (pose, then posture)."""
+    fused = wbc.Controller(robot, panda_stack(robot, levels=2), dt=DT)
+    ordinary = wbc.Controller(robot, panda_stack(robot, levels=2), dt=DT, fused=False)
+    for ctrl in (fused, ordinary):
+        ctrl.set_references(posture=Q0, ee=robot.frame_pose(Q0, "ee"))
+    return fused, ordinary
+
+
+def test_a_fused_cascade_controller_agrees_with_the_ordinary_path(robot, cascade_controllers):
+    fused, ordinary = cascade_controllers
+    assert fused.fused and len(fused.compiled.blocks) == 2
+    target = robot.frame_pose(Q0, "ee").copy()
+    target[:3, 3] += [0.1, -0.15, 0.1]
+    q = Q0.copy()
+    for k in range(100):  # velocity limits active at first
+        refs = {"ee": target} if k == 0 else {}
+        v = fused.step(q, **refs).copy()
+        np.testing.assert_allclose(v, ordinary.step(q, **refs), atol=1e-8)
+        assert fused.last_solution.ok and len(fused.last_solution.levels) == 2
+        q = q + DT * v
+    assert fused.workspace.fallback_solves == 0
+
+
+@pytest.mark.parametrize("levels", [1, 2])
+def test_a_fused_tick_allocates_nothing_in_steady_state(controllers, cascade_controllers,
+                                                        levels):
     """The command and the solution are buffers reused every tick; over 1000 ticks no memory
     block stays allocated, and the peak stays at the level of the loop's own bookkeeping. The
     ordinary path, for contrast, makes new arrays and a new solution every tick."""
-    fused, ordinary = controllers
+    fused, ordinary = controllers if levels == 1 else cascade_controllers
     q = Q0 + 0.05
     first = fused.step(q)
     assert fused.step(q) is first and fused.last_solution is fused.last_solution
     assert ordinary.step(q) is not ordinary.step(q)
+    fallbacks = fused.workspace.fallback_solves
 
     def blocks_and_peak(ctrl):
         for _ in range(10):  # warm caches
@@ -261,6 +399,7 @@ def test_a_fused_tick_allocates_nothing_in_steady_state(robot, controllers):
         return grown, peak - base
 
     grown, peak = blocks_and_peak(fused)
+    assert fused.last_solution.ok and fused.workspace.fallback_solves == fallbacks  # all fused
     assert grown == 0
     assert peak < 512  # bytes: no array, no solution object
     _, ordinary_peak = blocks_and_peak(ordinary)

@@ -1,13 +1,14 @@
 """The equivalence suite on the fused path (:mod:`wbc.fused`).
 
-The one-QP tests of ``test_equivalence.py`` (damped and weighted damped pseudo-inverses:
-rank-deficient and conflicting instances, pinned variables) run again with every daqp
-workspace replaced by a :class:`~wbc.fused.FusedWorkspace`, to the same tolerances and KKT
-checks. Cascades of several QPs are not fused (see
-:mod:`wbc.fused`): their examples (ρ = 0 adds a minimum-norm level) keep the ordinary
-workspace, and each test asserts that the fused path answered some of its examples. (The
-other tests of the suite are cascades throughout; the fused path's active bounds, soft rows,
-infeasibility and fallbacks are tested in ``test_fused.py``.)
+The tests of ``test_equivalence.py`` whose stacks have no task-scaling LP run again with every
+daqp workspace replaced by a :class:`~wbc.fused.FusedWorkspace`, to the same tolerances and KKT
+checks (of the QPs the generated daqp solved, frozen rows in their band): damped and weighted
+damped pseudo-inverses (rank-deficient and conflicting instances, pinned variables), strict
+hierarchies against recursive null-space projection (dependent and conflicting levels, the
+min-norm level), additive null-space terms, rate limit then saturation. An example whose
+generated daqp fails (an undamped level: a singular Hessian) takes the ordinary path; each
+test asserts that the fused path answered some of its examples. The task-scaling tests are not
+fused (see :mod:`wbc.fused`) and not repeated here.
 
 The fused function is evaluated on CasADi's virtual machine here: hypothesis draws dozens of
 shapes and each would be a C compilation (≈ 0.5–1 s). ``test_fused.py`` checks on fixed
@@ -52,3 +53,10 @@ def fused_workspaces(monkeypatch):
 
 test_damped_pinv_equals_one_level_qp = eq.test_damped_pinv_equals_one_level_qp
 test_weighted_damped_pinv_equals_one_level_qp = eq.test_weighted_damped_pinv_equals_one_level_qp
+test_strict_hierarchy_equals_recursive_nullspace_projection = (
+    eq.test_strict_hierarchy_equals_recursive_nullspace_projection)
+test_additive_nullspace_term_is_plain_cascade_when_unweighted = (
+    eq.test_additive_nullspace_term_is_plain_cascade_when_unweighted)
+test_additive_nullspace_term_needs_exact_form_when_weighted = (
+    eq.test_additive_nullspace_term_needs_exact_form_when_weighted)
+test_rate_limit_then_saturation_is_bounded_qp = eq.test_rate_limit_then_saturation_is_bounded_qp

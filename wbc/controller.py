@@ -51,9 +51,10 @@ quantities, never over tasks) → references → ``workspace.solve()`` (one comp
 and one warm-started backend solve per priority level) → the fallback policy if the solve
 failed. ``solution.timings.model`` holds the first four steps.
 
-On the fused path (the default for a single-QP stack on daqp with a C compiler, see
-:mod:`wbc.fused`), ``workspace.solve()`` is one call of a generated C function holding the
-compiled kinematics, the assembly and the daqp solve (``timings.solve``); a tick it does not
+On the fused path (the default for a stack on daqp without task-scaling levels, with a C
+compiler, see :mod:`wbc.fused`), ``workspace.solve()`` is one call of a generated C function
+holding the compiled kinematics, the assembly and the daqp solves of every level
+(``timings.solve``); a tick it does not
 solve is solved again on the ordinary path, so statuses, partial solutions and fallbacks read
 the same. The returned command and ``last_solution`` are then reused buffers.
 """
@@ -145,7 +146,7 @@ class Controller:
             virtual machine. Not used on the fused path (which compiles the whole tick).
         fused: the whole tick as one generated C function (compiled kinematics, assembly and
             the daqp solve, see :mod:`wbc.fused`). ``"auto"`` (default): when the backend is
-            ``"daqp"``, the cascade is a single QP and a C compiler is present — one
+            ``"daqp"``, the cascade has no task-scaling level and a C compiler is present — one
             :class:`RuntimeWarning` if only the compiler is missing, then today's path;
             ``True``: the same, but a stack that cannot be fused is a :class:`~wbc.WbcError`;
             ``False``: today's path. ``self.fused`` says which path is used and

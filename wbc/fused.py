@@ -1,38 +1,70 @@
 """The fused tick: parameters → command as one generated C function (model, assembly, solve).
 
-For a stack whose cascade is a single QP on daqp (one priority level, no task-scaling LP, no
-minimum-norm level), the compiled level function ``p -> (H, g, A, lA, uA, lb, ub)`` (which holds
-the compiled kinematics, see :func:`wbc.controller.compiled_kinematics`) is composed with
-CasADi's ``daqp`` conic node and the clipping of ``x`` into its bounds, into one CasADi
-function ``p -> x``. CasADi generates its C code; it is compiled against the daqp headers and
-static library that ship inside the casadi wheel (``casadi/include/daqp``,
+For a stack on daqp whose cascade has no task-scaling LP (one or several least-squares levels,
+and the minimum-norm level), the compiled level functions ``p -> (H, g, A, lA, uA, lb, ub,
+E)`` (which hold the compiled kinematics, see :func:`wbc.controller.compiled_kinematics`) are
+chained with one CasADi ``daqp`` conic node per QP and the clipping of ``x`` into its bounds,
+into one CasADi function ``p -> x``. CasADi generates its C code; it is compiled against the
+daqp headers and static library that ship inside the casadi wheel (``casadi/include/daqp``,
 ``casadi/libdaqpstat.a``), kept in the JIT cache (:mod:`wbc.jit`), and called every tick
 through :meth:`casadi.Function.buffer` on the workspace's own parameter vector: one C call per
 tick, no conversion, no allocation in Python.
 
+Cascades: the frozen rows
+-------------------------
+Level ``k+1`` keeps what the levels above achieved, as the ordinary path does: their soft rows
+at their optimal slacks (``l + w* <= C x <= u + w*``, inequalities as they are) and their task
+rows ``E`` where the level above left them. The ordinary path makes the task rows exact
+equalities on an orthonormal basis of their row space (QR with column pivoting, a numerical
+rank decision), skips a level they leave a single point, and retries a failed level in a thin
+band. A generated expression cannot take such data-dependent decisions, and daqp refuses
+linearly dependent equalities (``EXIT_OVERDETERMINED_INITIAL``) — which cascades have as a
+rule (an orientation level below a position level, a posture below both). The fused cascade
+therefore keeps every frozen task row, without the variables the level fixes (``lb == ub``)
+and scaled to unit norm, as a two-sided band ``|r·x − r·x*| <= FROZEN_BAND·(1 + |r·x*|)``
+(:data:`FROZEN_BAND` = 1e-11) — an inequality pair daqp's dual active-set method adds only
+when violated and handles when dependent — and its generated daqp gets ``primal_tol`` at most
+:data:`CASCADE_PRIMAL_TOL` (1e-10, the ``"tight"`` profile's) so that the rows hold to that
+much. Each level moves the rows of the levels above by at most ``FROZEN_BAND·(1 + |r·x*|) +
+primal_tol`` from where the level above left them (unit rows); how much ``x`` moves for it
+depends on the angle between the rows and the active bounds. Measured: the equivalence
+suite's cascades on the fused path (``tests/test_fused_equivalence.py``, tolerance 1e-7 and
+KKT checks) pass; fused against ordinary on random three-level cascades with active bounds
+(``tests/test_fused.py``) at most ≈ 6e-9 apart (1e-9 band: ≈ 6e-7, 1e-10: ≈ 6e-8 — the
+difference scales with the band; a 1e-12 band failed in daqp on some instances); the
+three-level stack of ``wbc bench`` on ``mecanum_gen3`` over 1000 closed-loop ticks (default
+profile): commands at most 6e-11 apart, no fallback. A level the levels above leave a point is
+solved too (within the band), where the ordinary path skips it.
+
 What keeps its meaning
 ----------------------
-* **Statuses.** The generated function returns non-zero when daqp does not report "optimal"
-  (it then writes no output). That tick is solved again by the ordinary path
-  (:meth:`Workspace.solve` with the Python daqp backend): the status, message, diagnosis of a
-  conflict and partial solution are exactly today's, never a silent zero, and
-  :attr:`FusedWorkspace.fallback_solves` counts such ticks. (DAQP's "soft optimal" is a failure
-  for the generated code and a success for the backend: such a tick is reported solved.)
-  Crossed sides (a lower bound above its upper one, which the bundled daqp does not check)
-  make the call fail too. A failed call writes no output: the previous command stays.
-* **Clipping.** ``x`` is clipped into ``[lb, ub]`` inside the generated function, as
-  :meth:`Workspace.solve` does.
+* **Statuses.** The generated function returns non-zero when any of its daqp calls does not
+  report "optimal" (it then writes no later output). That tick is solved again, from the first
+  level, by the ordinary path (:meth:`Workspace.solve` with the Python daqp backend): the
+  status, message, diagnosis of a conflict, partial solution and frozen-row retries are
+  exactly today's, never a silent zero, and :attr:`FusedWorkspace.fallback_solves` counts such
+  ticks. (DAQP's "soft optimal" is a failure for the generated code and a success for the
+  backend: such a tick is reported solved.) Crossed sides (a lower bound above its upper one,
+  which the bundled daqp does not check) make the call fail too. A failed call writes no
+  command: the previous one stays.
+* **Clipping.** Every level's ``x`` is clipped into its ``[lb, ub]`` inside the generated
+  function, as :meth:`Workspace.solve` does.
 * **Fallbacks** of :class:`~wbc.Controller` follow a failed solve, which always comes from the
   ordinary path: the variable bounds they read are that tick's.
+* **Levels.** The :class:`~wbc.Solution` lists every QP with its ``x``;
+  ``LevelResult.iterations`` is −1 (not reported by the generated code), ``frozen_rank`` −1 for
+  a level under frozen task rows (no rank is computed) and ``frozen_band`` the band.
 
 What stays in Python, and why
 -----------------------------
-Cascades of several QPs (strict priorities, task-scaling LPs, the minimum-norm level) keep the
-ordinary path (with JIT-compiled level functions): between two levels the workspace rank-
-compresses the frozen rows of the levels above (QR with column pivoting and a numerical rank
-decision), decides whether they leave a single point, and retries a failed level inside a thin
-band. Those are data-dependent decisions a generated expression cannot take without giving up
-the cascade's exactness, so no level of a cascade is fused.
+* **Task-scaling LPs** (``stack.add(..., scaling=True)``): the ordinary path compresses the
+  task's equality rows by an SVD and declares the task inconsistent when its target leaves
+  their range (no scale ``s > 0`` holds), a decision on the data; and the LP's zero Hessian
+  needs daqp's proximal iterations, which the generated solver runs without (see below). A
+  stack with a scaling level keeps the ordinary path as a whole.
+* **Undamped levels** fuse but fail: the generated daqp's proximal iterations are off
+  (``eps_prox = 0``), so a level with a singular Hessian (``damping`` 0 and a rank-deficient
+  task) fails its setup and every such tick takes the ordinary path — correct, only slower.
 
 Differences from the backend path
 ---------------------------------
@@ -44,9 +76,7 @@ Differences from the backend path
   factorisation), which the generated code does in C.
 * **DAQP version.** The casadi wheel bundles its own (older) DAQP. Its settings are those of
   :data:`DAQP_SETTINGS`; the backend's profile options (``"tight"``: ``primal_tol`` and
-  ``eta_prox`` 1e-10) are passed on. Its proximal iterations are off by default
-  (``eps_prox = 0``): a singular Hessian (an undamped level) fails in the generated code and
-  that tick takes the ordinary path — correct, only slower.
+  ``eta_prox`` 1e-10) are passed on (a cascade's ``primal_tol`` capped, see above).
 * The timing split: the whole generated call is ``timings.solve``, ``timings.assembly`` is 0.
 """
 
@@ -61,7 +91,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .compiler import LEVEL, CompiledStack
+from .compiler import LEVEL, MIN_NORM, CompiledStack
 from .errors import WbcError
 from .jit import DEFAULT_FLAGS, compiled_c
 from .qp import QPResult, Status
@@ -72,6 +102,17 @@ from .workspace import Workspace
 DAQP_SETTINGS = frozenset({"primal_tol", "dual_tol", "zero_tol", "pivot_tol", "progress_tol",
                            "cycle_tol", "iter_limit", "fval_bound", "eps_prox", "eta_prox",
                            "rho_soft", "rel_subopt", "abs_subopt"})
+
+
+#: DAQP's default ``primal_tol`` (``DEFAULT_PRIM_TOL`` in ``casadi/include/daqp/constants.h``).
+DAQP_PRIMAL_TOL = 1e-6
+#: Relative half-width of the band the frozen task rows of a fused cascade are kept in (see the
+#: module docstring).
+FROZEN_BAND = 1e-11
+#: The largest ``primal_tol`` of the generated daqp of a cascade (see the module docstring).
+CASCADE_PRIMAL_TOL = 1e-10
+#: The kinds of QP the fused tick solves (task-scaling LPs are not fused).
+FUSED_KINDS = frozenset({LEVEL, MIN_NORM})
 
 
 def daqp_link_arguments() -> tuple[str, ...]:
@@ -108,53 +149,136 @@ def initialise_success(source: str) -> str:
 def why_not_fused(compiled: CompiledStack, options: dict) -> str | None:
     """Why ``compiled`` cannot take the fused path with daqp ``options``, or ``None`` if it
     can (see the module docstring)."""
-    blocks = compiled.blocks
-    if len(blocks) != 1 or blocks[0].kind != LEVEL:
-        return (f"the cascade has {len(blocks)} QPs ({', '.join(b.label for b in blocks)}); "
-                "only a single QP is fused")
+    lps = [b.label for b in compiled.blocks if b.kind not in FUSED_KINDS]
+    if lps:
+        return (f"the cascade has task-scaling LPs ({', '.join(lps)}); only least-squares "
+                "levels and the min-norm level are fused")
     unknown = sorted(set(options) - DAQP_SETTINGS)
     if unknown:
         return f"the daqp bundled with casadi has no setting {unknown}"
     return None
 
 
+def fused_settings(compiled: CompiledStack, options: dict) -> dict:
+    """The daqp settings of the generated solver: ``options``, with ``primal_tol`` at most
+    :data:`CASCADE_PRIMAL_TOL` in a cascade (see the module docstring)."""
+    settings = dict(options)
+    if len(compiled.blocks) > 1:
+        settings["primal_tol"] = min(settings.get("primal_tol", DAQP_PRIMAL_TOL),
+                                     CASCADE_PRIMAL_TOL)
+    return settings
+
+
+def _frozen_rows(E: ca.MX, x: ca.MX, lb: ca.MX, ub: ca.MX, band: float):
+    """Rows ``(R, lower, upper)`` keeping ``E x`` where it is at ``x`` within a band: each row
+    without the variables this level fixes (``lb == ub``, as the ordinary path does), scaled to
+    unit norm (zero rows stay zero), held in ``|r·y − r·x| <= band·(1 + |r·x|)``."""
+    free = ca.repmat((lb < ub).T, E.shape[0], 1)
+    E = E * free
+    norms = ca.sqrt(ca.sum2(E * E))
+    E = E / ca.repmat(ca.if_else(norms > 0, norms, 1.0), 1, E.shape[1])
+    c = E @ x
+    half = band * (1 + ca.fabs(c))
+    return E, c - half, c + half
+
+
+def _cascade(compiled: CompiledStack, p: ca.MX, solve) -> tuple[ca.MX, list[dict]]:
+    """The fused cascade, symbolically: for every block its QP (``h, g, a, lba, uba, lbx,
+    ubx``, the frozen rows of the levels above appended), solved by ``solve(index, qp) -> (z,
+    cost, lam_a, lam_x)``, and the level's ``x`` (``z[:n]`` clipped into the bounds). Returns
+    the last ``x`` and, per block, a dict of the QP and its results."""
+    n = compiled.n
+    band = max(FROZEN_BAND, compiled.freeze_tol)
+    cost_rows: list[ca.MX] = []  # weighted task rows of the levels solved
+    soft: list[tuple[ca.MX, ca.MX, ca.MX]] = []  # their soft rows, shifted by the slacks
+    x = ca.MX.zeros(n)  # Stack.x_above() is 0 at the first level
+    levels = []
+    for i, block in enumerate(compiled.blocks):
+        p_in = p
+        if compiled.x_above_offset is not None:
+            o = compiled.x_above_offset
+            p_in = ca.vertcat(p[:o], x, p[o + n:])
+        H, g, AT, lA, uA, lb, ub, ET = block.function(p_in)
+        n_z = block.n_z
+        rows, lower, upper = [AT.T], [lA], [uA]
+        if block.n_frozen_soft:
+            C = ca.vertcat(*[s[0] for s in soft])
+            rows.append(ca.horzcat(C, ca.MX(C.shape[0], n_z - n)))
+            lower += [s[1] for s in soft]
+            upper += [s[2] for s in soft]
+        if block.n_frozen_cost:
+            R, low, up = _frozen_rows(ca.vertcat(*cost_rows), x, lb, ub, band)
+            rows.append(ca.horzcat(R, ca.MX(R.shape[0], n_z - n)))
+            lower.append(low)
+            upper.append(up)
+        free = ca.DM.inf(n_z - n)  # slack columns of soft rows are free
+        qp = {"h": H, "g": g, "a": ca.vertcat(*rows), "lba": ca.vertcat(*lower),
+              "uba": ca.vertcat(*upper), "lbx": ca.vertcat(lb, -free),
+              "ubx": ca.vertcat(ub, free)}
+        z, cost, lam_a, lam_x = solve(i, qp)
+        x = ca.fmin(ca.fmax(z[:n], lb), ub)
+        if block.m_cost:
+            cost_rows.append(ET.T)
+        if block.m_soft:
+            own = slice(block.m_hard, block.m_hard + block.m_soft)
+            slack = z[n:]
+            soft.append((AT.T[own, :n], lA[own] + slack, uA[own] + slack))
+        levels.append({"qp": qp, "x": x, "z": z, "cost": cost, "lam_a": lam_a,
+                       "lam_x": lam_x, "band": band if block.n_frozen_cost else 0.0})
+    return x, levels
+
+
 def fused_function(compiled: CompiledStack, options: dict) -> ca.Function:
-    """The CasADi function ``p -> (x, done, z, y, z_bounds)`` of a single-QP stack: its level
-    function, daqp (CasADi's conic node with ``options``), ``x`` clipped into ``[lb, ub]``,
-    ``done`` (the cost; unwritten, as every output, if daqp fails or sides cross), the QP's
-    solution ``z`` (slacks included) and its multipliers (rows, bounds; the sign convention of
-    :mod:`wbc.qp`).
+    """The CasADi function ``p -> (x, done, [x_i,] z_i, y_i, z_bounds_i for each QP i)`` of a
+    cascade of least-squares levels (and the min-norm level): every level's function, daqp
+    (CasADi's conic node with ``options``) on its QP with the frozen rows of the levels above
+    (see the module docstring), and ``x`` clipped into ``[lb, ub]``. ``done`` is the sum of the
+    costs; unwritten, as every later output, if a daqp call fails or sides cross. Per QP ``i``:
+    ``x_i`` (every QP but the last, whose ``x_i`` is ``x``), its solution ``z_i`` (slacks
+    included) and its multipliers (rows, bounds; the sign convention of :mod:`wbc.qp`).
     Evaluates on CasADi's virtual machine as it is; :func:`compiled_c` makes it C.
 
     Raises:
-        WbcError: the stack is not a single QP, or an option is not a daqp setting.
+        WbcError: the stack has a task-scaling LP, or an option is not a daqp setting.
     """
     reason = why_not_fused(compiled, options)
     if reason:
         raise WbcError(f"cannot fuse: {reason}")
-    block = compiled.blocks[0]
-    n, n_z, m = compiled.n, block.n_z, block.m_top
+
+    def solve(i: int, qp: dict):
+        n_z, m = qp["h"].shape[0], qp["a"].shape[0]
+        solver = ca.conic(f"daqp_{i}", "daqp", {"h": ca.Sparsity.dense(n_z, n_z),
+                                                "a": ca.Sparsity.dense(m, n_z)},
+                          {"daqp": dict(options), "error_on_fail": True})
+        # The daqp bundled with casadi does not check lower <= upper: when sides cross, it is
+        # given H = −I instead, which its setup refuses (not convex), so that the call fails as
+        # a whole and writes no output (the previous command stays for the "last" fallback).
+        crossed = ca.sum1(qp["lbx"] > qp["ubx"]) + ca.sum1(qp["lba"] > qp["uba"])
+        result = solver(**{**qp, "h": ca.if_else(crossed == 0, qp["h"], -ca.MX.eye(n_z))})
+        return result["x"], result["cost"], result["lam_a"], result["lam_x"]
+
     p = ca.MX.sym("p", compiled.defaults.shape[0])
-    p_in = p
-    if compiled.x_above_offset is not None:  # Stack.x_above() is 0 at the first level
-        o = compiled.x_above_offset
-        p_in = ca.vertcat(p[:o], ca.MX.zeros(n), p[o + n:])
-    H, g, AT, lA, uA, lb, ub, _ = block.function(p_in)
-    free = ca.DM.inf(n_z - n)  # slack columns of soft rows are free
-    solver = ca.conic("daqp", "daqp", {"h": ca.Sparsity.dense(n_z, n_z),
-                                       "a": ca.Sparsity.dense(m, n_z)},
-                      {"daqp": dict(options), "error_on_fail": True})
-    # The daqp bundled with casadi does not check lower <= upper: when sides cross, it is given
-    # H = −I instead, which its setup refuses (not convex), so that the call fails as a whole and
-    # writes no output (the previous command stays in place for the "last" fallback).
-    crossed = ca.sum1(lb > ub) + ca.sum1(lA > uA)
-    H = ca.if_else(crossed == 0, H, -ca.MX.eye(n_z))
-    qp = solver(h=H, g=g, a=AT.T, lba=lA, uba=uA, lbx=ca.vertcat(lb, -free),
-                ubx=ca.vertcat(ub, free))
-    x = ca.fmin(ca.fmax(qp["x"][:n], lb), ub)
-    # "done" (the cost) is written after a successful solve only: see FusedWorkspace.solve
-    return ca.Function("fused_tick", [p], [x, qp["cost"], qp["x"], qp["lam_a"], qp["lam_x"]],
-                       ["p"], ["x", "done", "z", "y", "z_bounds"])
+    x, levels = _cascade(compiled, p, solve)
+    outputs, names = [x, sum(level["cost"] for level in levels)], ["x", "done"]
+    for i, level in enumerate(levels):
+        if i < len(levels) - 1:
+            outputs.append(level["x"])
+            names.append(f"x_{i}")
+        outputs += [level["z"], level["lam_a"], level["lam_x"]]
+        names += [f"z_{i}", f"y_{i}", f"z_bounds_{i}"]
+    # "done" is written after every solve succeeded only: see FusedWorkspace.solve
+    return ca.Function("fused_tick", [p], outputs, ["p"], names)
+
+
+def fused_qps(compiled: CompiledStack) -> ca.Function:
+    """For diagnostics (:meth:`FusedWorkspace.last_qps`): ``(p, z_0, z_1, ...) -> (H, g, A,
+    lA, uA, lb, ub)`` of every QP of the fused cascade, each solved by the given ``z_i``."""
+    p = ca.MX.sym("p", compiled.defaults.shape[0])
+    zs = [ca.MX.sym(f"z_{i}", b.n_z) for i, b in enumerate(compiled.blocks)]
+    _, levels = _cascade(compiled, p, lambda i, qp: (zs[i], None, None, None))
+    return ca.Function("fused_qps", [p, *zs],
+                       [level["qp"][key] for level in levels
+                        for key in ("h", "g", "a", "lba", "uba", "lbx", "ubx")])
 
 
 class FusedWorkspace(Workspace):
@@ -163,7 +287,8 @@ class FusedWorkspace(Workspace):
     path.
 
     Args:
-        compiled: a single-QP compiled stack (:func:`why_not_fused` is ``None``).
+        compiled: a compiled stack without task-scaling LPs (:func:`why_not_fused` is
+            ``None``).
         profile: daqp tolerance profile, ``"default"`` or ``"tight"``.
         warm_start: for the ordinary path's backend (the generated solver cold-starts).
         compile: ``True`` — compiled C (needs a C compiler; built once per machine, cached);
@@ -174,7 +299,7 @@ class FusedWorkspace(Workspace):
         WbcError: not fusable; ``RuntimeError`` if the C compiler fails.
 
     The :class:`~wbc.Solution` a fused tick returns is one object reused every tick, and its
-    ``x`` a buffer the next tick overwrites: copy what you keep.
+    arrays buffers the next tick overwrites: copy what you keep.
 
     Attributes:
         function: the fused CasADi function (compiled C, or the virtual machine's).
@@ -187,36 +312,47 @@ class FusedWorkspace(Workspace):
                  warm_start: bool = True, compile: bool = True, **options) -> None:
         super().__init__(compiled, "daqp", profile, warm_start, **options)
         # the profile, resolved (a registered daqp backend: a BackendBase, which has options)
-        settings = dict(self._blocks[0].backend.options)  # type: ignore[attr-defined]
+        settings = fused_settings(
+            compiled, self._blocks[0].backend.options)  # type: ignore[attr-defined]
         function = fused_function(compiled, settings)
         if compile:
             function = compiled_c(function, DEFAULT_FLAGS, daqp_link_arguments(),
                                   initialise_success)
         self.function = function
         self.fallback_solves = 0  # ticks the generated daqp did not solve
-        self._x = np.zeros(compiled.n)
+        self._qps: ca.Function | None = None  # fused_qps, made when last_qps first asks
         self._buffer, self._evaluate = function.buffer()
         self.bare_call = self._evaluate  # the generated function alone, for benchmarks
-        # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res, and
-        # numpy's, for Python < 3.12, no buffer protocol of ndarray)
-        self._buffer.set_arg(0, memoryview(self.p))  # type: ignore[call-arg, arg-type]
-        self._buffer.set_res(0, memoryview(self._x))  # type: ignore[call-arg, arg-type]
+        n, blocks = compiled.n, compiled.blocks
+        self._x = np.zeros(n)
+        level_x = [np.zeros(n) for _ in blocks[:-1]] + [self._x]
         # Reading the call's return code through SWIG costs ≈ 0.8 µs; instead, "done" is set to
         # NaN before each call and only a solved call overwrites it (with the finite cost).
         done = np.zeros(1)
-        self._buffer.set_res(1, memoryview(done))  # type: ignore[call-arg, arg-type]
-        # items as Python floats: cheaper than numpy scalars
-        self._done = memoryview(done)  # type: ignore[arg-type]
-        block = compiled.blocks[0]
-        self._qp_result = QPResult(np.zeros(block.n_z), Status.SOLVED, np.zeros(block.m_total),
-                                   np.zeros(block.n_z))
-        for i, out in enumerate((self._qp_result.x, self._qp_result.y, self._qp_result.z), 2):
+        self._results = [QPResult(np.zeros(b.n_z), Status.SOLVED,
+                                  np.zeros(b.m_top + b.n_frozen_soft + b.n_frozen_cost),
+                                  np.zeros(b.n_z)) for b in blocks]
+        outputs = [self._x, done]
+        for i, result in enumerate(self._results):
+            outputs += [level_x[i]] if i < len(blocks) - 1 else []
+            outputs += [result.x, result.y, result.z]
+        # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res, and
+        # numpy's, for Python < 3.12, no buffer protocol of ndarray)
+        self._buffer.set_arg(0, memoryview(self.p))  # type: ignore[call-arg, arg-type]
+        for i, out in enumerate(outputs):
             if out.size:
                 self._buffer.set_res(i, memoryview(out))  # type: ignore[call-arg, arg-type]
+        # items as Python floats: cheaper than numpy scalars
+        self._done = memoryview(done)  # type: ignore[arg-type]
         self._timings = Timings()
-        self._solution = Solution(self._x, Status.SOLVED,
-                                  [LevelResult(block.label, Status.SOLVED, self._x, 0)],
-                                  compiled.variables, {}, self._timings)
+        band = max(FROZEN_BAND, compiled.freeze_tol)
+        # frozen_rank −1: the fused tick keeps every frozen row and computes no rank
+        self._solution = Solution(
+            self._x, Status.SOLVED,
+            [LevelResult(b.label, Status.SOLVED, level_x[i], -1 if b.n_frozen_cost else 0,
+                         -1, "", band if b.n_frozen_cost else 0.0)
+             for i, b in enumerate(blocks)],
+            compiled.variables, {}, self._timings)
         self._no_qps: list = []
 
     def solve(self) -> Solution:
@@ -243,17 +379,28 @@ class FusedWorkspace(Workspace):
         """As :meth:`Workspace.variable_bounds`; after a fused tick they are evaluated again
         (the fused call keeps them inside C; without this they were a previous tick's)."""
         if self._solved is self._no_qps:
+            if self._x_above is not None:  # 0 at the first level, as in the fused call
+                self._x_above[:] = 0.0
             self._blocks[0].evaluate()
         return super().variable_bounds()
 
     def last_qps(self) -> list[tuple]:
-        """As :meth:`Workspace.last_qps`; after a fused tick, the QP's arrays are evaluated
-        again (the fused call keeps them inside C) and the result is the fused solve's."""
+        """As :meth:`Workspace.last_qps`; after a fused tick, the QPs the generated daqp solved
+        (frozen rows in their band, see the module docstring), evaluated again on CasADi's
+        virtual machine, with the fused solve's results."""
         if self._solved is not self._no_qps:
             return super().last_qps()
-        state = self._blocks[0]
-        state.evaluate()
-        return [(state.block.label, state.qp, self._qp_result)]
+        if self._qps is None:
+            self._qps = fused_qps(self.compiled)
+        arrays = [np.asarray(a, float) for a in
+                  self._qps(self.p, *[result.x for result in self._results])]
+        qps = []
+        for i, (block, result) in enumerate(zip(self.compiled.blocks, self._results,
+                                                strict=True)):
+            H, g, A, lA, uA, lb, ub = arrays[7 * i:7 * i + 7]
+            qps.append((block.label, (H, g.ravel(), A, lA.ravel(), uA.ravel(), lb.ravel(),
+                                      ub.ravel()), result))
+        return qps
 
 
 def compiler_available() -> bool:
@@ -261,5 +408,7 @@ def compiler_available() -> bool:
     return shutil.which(os.environ.get("CC", "cc")) is not None
 
 
-__all__ = ["DAQP_SETTINGS", "FusedWorkspace", "compiler_available", "daqp_link_arguments",
-           "fused_function", "initialise_success", "why_not_fused"]
+__all__ = ["CASCADE_PRIMAL_TOL", "DAQP_PRIMAL_TOL", "DAQP_SETTINGS", "FROZEN_BAND",
+           "FUSED_KINDS", "FusedWorkspace", "compiler_available", "daqp_link_arguments",
+           "fused_function", "fused_qps", "fused_settings", "initialise_success",
+           "why_not_fused"]
