@@ -31,9 +31,10 @@ one member:
   space: ``g(α) = max_i |a_i + α b_i|`` (``a = W τ0``, ``b = W n``) is convex and piecewise
   linear; its minimum lies where two of the lines ``±(a_i + α b_i)`` cross (or where one
   crosses zero), so the candidates are enumerated and the best taken. When the minimum is
-  attained on an interval of ``α``, the member maximising ``H`` is returned (``α_opt`` clipped
-  to the interval): the answer is unique and equals the QP form's two-level cascade. Only
-  ``N − 3 ≤ 1`` is supported.
+  attained on an interval of ``α`` (a wheel with ``n_i = 0`` carries the largest utilisation),
+  the least-norm member is returned (``α = 0`` clipped to the interval, as ``τ0 ⟂ n``): the
+  answer is unique and equals the QP form's (a damped level, see
+  :mod:`wbc.tasks.torque_distribution`). Only ``N − 3 ≤ 1`` is supported.
 
 The functions are plain numpy, the oracles of the QP forms and usable as controllers.
 """
@@ -146,11 +147,11 @@ def torque_distribution(J, f_d, normal_forces, mu=1.0, method: str = "proportion
     if null.shape[1] > 1:
         raise InvalidValueError(f"method 'minmax' is implemented for one redundant torque "
                                 f"(4 wheels), got {null.shape[1]}")
-    return tau0 + null[:, 0] * _minmax_alpha(w * tau0, wn[:, 0], float(alpha[0]))
+    return tau0 + null[:, 0] * _minmax_alpha(w * tau0, wn[:, 0])
 
 
-def _minmax_alpha(a: np.ndarray, b: np.ndarray, preferred: float) -> float:
-    """A minimiser of ``g(α) = max_i |a_i + α b_i|``: the one nearest to ``preferred``.
+def _minmax_alpha(a: np.ndarray, b: np.ndarray) -> float:
+    """A minimiser of ``g(α) = max_i |a_i + α b_i|``: the one nearest to 0.
 
     The minimum of this convex piecewise-linear function lies at a crossing of two lines
     ``±(a_i + α b_i)`` or at a zero of one; every candidate is evaluated.
@@ -172,4 +173,4 @@ def _minmax_alpha(a: np.ndarray, b: np.ndarray, preferred: float) -> float:
     lo, hi = ends[0].max(), ends[1].min()
     if lo > hi:  # round-off at a single minimiser
         return float(alphas[values.argmin()])
-    return float(np.clip(preferred, lo, hi))
+    return float(np.clip(0.0, lo, hi))
