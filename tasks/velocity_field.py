@@ -230,18 +230,24 @@ class VelocityField:
         self.command = command.copy()
         self.heading: float | None = None
 
-    def update_heading(self, p) -> float | None:
-        """Latch stage of :meth:`step`: on entering the retreat zone latch eq. 11's heading from
-        the entry point's ``φ``; release it on leaving. Returns the heading [rad] or ``None``."""
+    def _point(self, p) -> np.ndarray:
         p = self._points(p)
         if p.shape != (3,):
             raise ShapeError(f"p must have shape (3,), got {p.shape}")
-        _, d_r, phi = self._geometry(p)
+        return p
+
+    def _latch(self, d_r, phi) -> float | None:
         if d_r >= self.delta_r:
             self.heading = None
         elif self.heading is None:
             self.heading = float(self.retreat_heading(phi))
         return self.heading
+
+    def update_heading(self, p) -> float | None:
+        """Latch stage of :meth:`step`: on entering the retreat zone latch eq. 11's heading from
+        the entry point's ``φ``; release it on leaving. Returns the heading [rad] or ``None``."""
+        _, d_r, phi = self._geometry(self._point(p))
+        return self._latch(d_r, phi)
 
     def smooth(self, raw, previous) -> np.ndarray:
         """Eqs. 14–15: ``(1 − α)·previous + α·raw`` for ``(v, ω)`` pairs."""
@@ -252,8 +258,8 @@ class VelocityField:
         """One control tick at the TEE point ``p`` [m] (3,): latch, raw laws, smoothing, rate
         limit and saturation (eqs. 4–19). Returns the applied ``(v [m/s], ω [rad/s])`` and keeps
         it as :attr:`command` for the next tick."""
-        heading = self.update_heading(p)
-        raw = self.raw(p, heading)
+        d_f, d_r, phi = self._geometry(self._point(p))
+        raw = self._laws(d_f, d_r, phi, self._latch(d_r, phi))
         smoothed = self.smooth(raw, self.command)
         self.command = rate_limited_twist(smoothed, self.command, self.limit, self.rate_limit)
         return float(self.command[0]), float(self.command[1])

@@ -257,3 +257,163 @@ def test_qp_level_equals_the_two_stage_clip(backend, seed):
 def test_qp_level_beside_an_arm_block_equals_the_two_stage_clip(backend):
     for seed in range(40):
         _check_level(backend, 3, *_random_instance(seed))
+
+
+# ----------------------------------------------------------------------------- §II-A: bounds
+def _random_sequence(field, rng, ticks):
+    """Apply ``field.step`` to a random TEE path: a random walk with occasional jumps anywhere
+    in a box of ±3 m (so the raw commands run far beyond the limits); returns ``(ticks, 2)``."""
+    p = random_points(rng, 1)[0]
+    out = np.empty((ticks, 2))
+    for k in range(ticks):
+        if rng.random() < 0.05:
+            p = random_points(rng, 1, half_width=3.0)[0]
+        else:
+            p = p + rng.normal(0.0, 0.03, 3)
+        out[k] = field.step(p)
+    return out
+
+
+def _assert_bounded(field, commands):
+    v, omega = commands[:, 0], commands[:, 1]
+    assert np.abs(v).max() <= field.v_max and np.abs(omega).max() <= field.omega_max
+    steps = np.abs(np.diff(np.vstack([[0.0, 0.0], commands]), axis=0))
+    assert steps[:, 0].max() <= field.dv_max + 1e-15
+    assert steps[:, 1].max() <= field.domega_max + 1e-15
+
+
+def test_bounds_and_rate_limits_hold_over_ten_thousand_ticks():
+    """Eq. 21 and the per-tick rate limits, 50 sequences × 200 ticks of the paper's field."""
+    field, rng = VelocityField(), np.random.default_rng(3)
+    commands = []
+    for _ in range(50):
+        field.reset()
+        commands.append(_random_sequence(field, rng, 200))
+    for c in commands:
+        _assert_bounded(field, c)
+    stacked = np.vstack(commands)
+    assert np.isclose(np.abs(stacked[:, 0]).max(), field.v_max)  # the limits are reached
+
+
+@settings(max_examples=25)
+@given(st.integers(0, 2**32 - 1), st.floats(0.05, 1.0), st.floats(0.1, 2.0), st.floats(0.1, 2.0),
+       st.floats(0.005, 0.5), st.floats(0.005, 0.5))
+def test_bounds_and_rate_limits_hold_for_any_limits(seed, alpha, v_max, omega_max, dv, domega):
+    field = VelocityField(alpha=alpha, v_max=v_max, omega_max=omega_max, dv_max=dv,
+                          domega_max=domega, k_f=5.0, k_r=5.0, k_omega=3.0)
+    _assert_bounded(field, _random_sequence(field, np.random.default_rng(seed), 150))
+
+
+# ----------------------------------------------------------------------------- §II-A: continuity
+def _angle_gap(phi, cut):
+    return np.abs(np.angle(np.exp(1j * (phi - cut))))
+
+
+@pytest.mark.parametrize("heading", [None, -30 * DEG, 30 * DEG])
+def test_v_and_omega_are_lipschitz_within_each_mode_away_from_the_cuts(heading):
+    """10⁴ random pairs ``p, p + δ`` (|δ| = 1e-6 m) in the same mode and on the same side of
+    every cut listed in the module docstring: |Δv| ≤ K|δ| (d_f, d_r are 1-Lipschitz) and
+    |Δω| ≤ (K_ω·1.5/(φ_max − φ_min)/|p_⊥| + ω_max·1.5/ε)|δ| (slopes of the smoothsteps)."""
+    f, rng, h = VelocityField(), np.random.default_rng(4), 1e-6
+    p = random_points(rng, 10_000)
+    step = rng.normal(size=(10_000, 3))
+    q = p + h * step / np.linalg.norm(step, axis=1, keepdims=True)
+    _, dr_p, phi = f.distances(p)
+    _, dr_q, _ = f.distances(q)
+    planar = np.hypot(p[:, 0], p[:, 1])
+    retreat = dr_p < f.delta_r
+    same_mode = (retreat == (dr_q < f.delta_r)) & (np.abs(dr_p - f.delta_r) > 2 * h)
+    cuts = [np.pi, np.where(retreat, 0.0 if heading is None else heading, np.pi)]
+    clear = same_mode & (planar > 1e-3)
+    for cut in cuts:
+        clear &= _angle_gap(phi, cut) > 4 * h / planar
+    assert clear.sum() > 9_000
+    v_p, w_p = f.raw(p[clear], heading)
+    v_q, w_q = f.raw(q[clear], heading)
+    slope_v = max(f.k_f, f.k_r)
+    slope_w = (f.k_omega * 1.5 / (f.phi_max - f.phi_min) / (planar[clear] - h)
+               + f.omega_max * 1.5 / f.epsilon)
+    assert np.all(np.abs(v_q - v_p) <= slope_v * h * (1 + 1e-6) + 1e-12)
+    assert np.all(np.abs(w_q - w_p) <= slope_w * h * (1 + 1e-6) + 1e-12)
+
+
+def test_continuity_counterexamples_as_printed():
+    """Where the printed laws jump (module docstring); each jump is a full ±K_ω or ±ω_max."""
+    f, t = VelocityField(), 1e-9
+    jumps = {
+        # nominal mode, behind the base: φ = ±π flips sign(φ)·γ(|φ|)
+        "behind": (f.raw([-0.6, t, 0.3])[1], f.raw([-0.6, -t, 0.3])[1]),
+        # nominal mode, on the vertical axis above the capsule: φ undefined
+        "axis": (f.raw([t, 0.0, 0.85])[1], f.raw([0.0, t, 0.85])[1]),
+        # retreat zone, latched φ_t = −30°: the bang-bang sign of eq. 10
+        "at heading": (f.raw([0.2 * math.cos(-30 * DEG + t), 0.2 * math.sin(-30 * DEG + t), 0.3],
+                             -30 * DEG)[1],
+                       f.raw([0.2 * math.cos(-30 * DEG - t), 0.2 * math.sin(-30 * DEG - t), 0.3],
+                             -30 * DEG)[1]),
+        # retreat zone, unlatched: φ_t = −sign(φ)|φ_t| flips at φ = 0
+        "ahead, unlatched": (f.raw([0.2, t, 0.3])[1], f.raw([0.2, -t, 0.3])[1]),
+    }
+    for name, (a, b) in jumps.items():
+        assert abs(a - b) >= 1.0, name
+    # the mode boundary where the forward zone meets the retreat zone (low z): v jumps
+    radius, z = f.b_d + f.delta_r, -0.3
+    outside, inside = f.raw([radius + t, 0.0, z])[0], f.raw([radius - t, 0.0, z])[0]
+    assert outside == pytest.approx(f.k_f * (f.delta_f - (f.r_f - math.hypot(radius, z - f.l0))))
+    assert outside > 0.1 and inside == pytest.approx(0.0, abs=1e-8)
+
+
+def _unit(rng, n):
+    u = rng.normal(size=(n, 3))
+    return u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def _on_switch_surfaces(f, rng, n):
+    """``n`` random points on each surface where a law switches branch inside a mode: the
+    forward activation ``d_f = Δ_f``, the heading band ends ``|φ| = φ_min, φ_max``, the end of
+    the retreat ramp ``d_r = Δ_r − ε`` (below and above the shoulder) and eq. 6's ``z = l0``."""
+    c = np.array([0.0, 0.0, f.l0])
+    radius, angle = rng.uniform(0.3, 1.2, n), rng.choice([-1.0, 1.0], n)
+    z = rng.uniform(-0.4, 1.2, n)
+    ring = f.b_d + f.delta_r - f.epsilon
+    around = rng.uniform(-np.pi, np.pi, n)
+    upper = _unit(rng, n)
+    upper[:, 2] = np.abs(upper[:, 2])
+    return {
+        "d_f = delta_f": c + (f.r_f - f.delta_f) * _unit(rng, n),
+        "phi = phi_min": np.column_stack([radius * np.cos(angle * f.phi_min),
+                                          radius * np.sin(angle * f.phi_min), z]),
+        "phi = phi_max": np.column_stack([radius * np.cos(angle * f.phi_max),
+                                          radius * np.sin(angle * f.phi_max), z]),
+        "d_r = delta_r - eps (z <= l0)": np.column_stack([ring * np.cos(around),
+                                                          ring * np.sin(around),
+                                                          rng.uniform(-0.4, f.l0, n)]),
+        "d_r = delta_r - eps (z > l0)": c + ring * upper,
+        "z = l0": np.column_stack([rng.uniform(-1.2, 1.2, (n, 2)), np.full(n, f.l0)]),
+    }
+
+
+@pytest.mark.parametrize("heading", [None, -30 * DEG])
+def test_v_and_omega_are_continuous_across_every_branch_switch_within_a_mode(heading):
+    """The pairs ``s ± δ`` (|δ| = 1e-7 m) straddle a switch surface: the laws must not jump
+    there (eq. 12 as printed would, at ``d_r = Δ_r − ε``). Pairs that change mode or straddle a
+    cut of the module docstring are set aside; 10⁴ pairs in all."""
+    f, rng, h = VelocityField(), np.random.default_rng(5), 1e-7
+    checked = 0
+    for name, s in _on_switch_surfaces(f, rng, 1_700).items():
+        delta = h * _unit(rng, len(s))
+        a, b = s - delta, s + delta
+        (_, dr_a, phi), (_, dr_b, _) = f.distances(a), f.distances(b)
+        planar = np.hypot(s[:, 0], s[:, 1])
+        retreat = dr_a < f.delta_r
+        keep = (retreat == (dr_b < f.delta_r)) & (np.abs(dr_a - f.delta_r) > 4 * h)
+        keep &= planar > 1e-3
+        for cut in (np.pi, np.where(retreat, 0.0 if heading is None else heading, np.pi)):
+            keep &= _angle_gap(phi, cut) > 4 * h / planar
+        assert keep.sum() > 500, name
+        checked += keep.sum()
+        (v_a, w_a), (v_b, w_b) = f.raw(a[keep], heading), f.raw(b[keep], heading)
+        slope_w = (f.k_omega * 1.5 / (f.phi_max - f.phi_min) / (planar[keep] - h)
+                   + f.omega_max * 1.5 / f.epsilon)
+        assert np.all(np.abs(v_b - v_a) <= max(f.k_f, f.k_r) * 2 * h * (1 + 1e-6) + 1e-12), name
+        assert np.all(np.abs(w_b - w_a) <= slope_w * 2 * h * (1 + 1e-6) + 1e-12), name
+    assert checked > 7_000
