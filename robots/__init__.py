@@ -88,3 +88,8 @@ __all__ += ["SteerableController", "SteerableDrive"]
 from .omni import ARM_MASS, PLATFORM_MASS, normal_forces, system_com  # noqa: E402
 
 __all__ += ["ARM_MASS", "PLATFORM_MASS", "normal_forces", "system_com"]
+from .omni_control import OmniForceControl, OmniPositionControl, platform_error  # noqa: E402
+from .omni_dynamics import OmniDynamics, coulomb_forces  # noqa: E402
+
+__all__ += ["OmniDynamics", "OmniForceControl", "OmniPositionControl", "coulomb_forces",
+            "platform_error"]

@@ -1,0 +1,67 @@
+"""`wbc study omni --quick` keeps the output contract, and its claims are the runs' numbers."""
+
+from __future__ import annotations
+
+import json
+
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from wbc.experiments import omni  # noqa: E402
+
+CLAIMS = {"two_wheel_shortfall", "four_wheel_error", "four_wheels_worse_than_two",
+          "unequal_normal_forces", "proportional_less_slip_y", "minmax_at_most_proportional_y",
+          "proportional_less_slip_diagonal", "minmax_at_most_proportional_diagonal",
+          "qp_equals_closed_form"}
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("study")
+    assert omni.main(["--quick", "--out", str(out)]) == 0
+    folder = out / "omni"
+    return folder, json.loads((folder / "omni.json").read_text())
+
+
+def test_quick_study_writes_the_contract(study):
+    folder, data = study
+    assert {"claims", "runs", "timing", "machine", "parameters", "summary"} <= set(data)
+    assert {c["id"] for c in data["claims"]} == CLAIMS
+    for claim in data["claims"]:
+        assert {"id", "statement", "paper", "ours", "holds", "note"} == set(claim)
+        assert isinstance(claim["holds"], bool)
+    assert set(data["runs"]) == set(omni.SCENARIOS)
+    for methods in data["runs"].values():
+        assert set(methods) == set(omni.METHODS)
+        for series in methods.values():
+            n = len(series["t"])
+            assert np.shape(series["base_velocity"]) == (n, 3)
+            assert np.shape(series["ee_error"]) == (n,)
+            assert np.shape(series["slip"]) == (n, 4)
+            assert np.all(np.diff(series["slip"], axis=0) >= 0)  # cumulative distances
+            assert set(series["status"]) <= {"", "solved"}
+    assert {"tick_median_s", "tick_p95_s"} <= set(data["timing"]["daqp"])
+    for figure in ("omni_paths.png", "omni_slip.png", "omni_utilisation.png"):
+        assert (folder / figure).stat().st_size > 0
+    assert "claims reproduced" in (folder / "omni.md").read_text()
+
+
+def test_claims_are_the_runs_numbers(study):
+    _, data = study
+    claims = {c["id"]: c for c in data["claims"]}
+    for scenario, methods in data["runs"].items():
+        total = {m: float(np.sum(s["slip"][-1])) for m, s in methods.items()}
+        claim = claims[f"proportional_less_slip_{scenario}"]
+        assert claim["holds"] == (total["proportional"] < total["min_norm"])
+        assert claim["ours"]["min_norm_mm"] == pytest.approx(1e3 * total["min_norm"], abs=1e-3)
+    position = data["runs"]["diagonal"]["position"]
+    error = np.linalg.norm(np.subtract(position["final_true_position"],
+                                       position["final_odometry_position"]))
+    assert claims["four_wheel_error"]["ours"]["error_cm"] == pytest.approx(100 * error, abs=0.01)
+    # the distribution stacks on daqp are the closed forms
+    assert claims["qp_equals_closed_form"]["holds"]
+    # the premise of the slip claims: the arm's swing loads the wheels unequally
+    assert claims["unequal_normal_forces"]["holds"]
