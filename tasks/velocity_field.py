@@ -187,6 +187,9 @@ class VelocityField:
         return np.where(np.asarray(phi) >= 0.0, -self.phi_t, self.phi_t)
 
     def _laws(self, d_f, d_r, phi, heading):
+        """Eqs. 7-13 from the geometry; ``heading`` ``None``: eq. 11 from ``phi`` itself."""
+        if heading is None:
+            heading = self.retreat_heading(phi)
         retreat = d_r < self.delta_r
         forward = np.where(d_f < self.delta_f, self.k_f * (self.delta_f - d_f), 0.0)
         v = np.where(retreat, -self.k_r * (self.delta_r - d_r), forward)          # eq. 7
@@ -208,13 +211,11 @@ class VelocityField:
             otherwise. Not saturated: eq. 7 is proportional.
         """
         d_f, d_r, phi = self._geometry(self._points(p))
-        if phi_t is None:
-            heading = self.retreat_heading(phi)
-        else:
-            heading = _number(phi_t, "phi_t")
-            if abs(heading) > math.pi:
-                raise InvalidValueError(f"phi_t must lie in [-pi, pi], got {heading}")
-        v, omega = self._laws(d_f, d_r, phi, heading)
+        if phi_t is not None:
+            phi_t = _number(phi_t, "phi_t")
+            if abs(phi_t) > math.pi:
+                raise InvalidValueError(f"phi_t must lie in [-pi, pi], got {phi_t}")
+        v, omega = self._laws(d_f, d_r, phi, phi_t)
         if v.ndim == 0:
             return float(v), float(omega)
         return v, omega
