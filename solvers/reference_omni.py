@@ -24,7 +24,10 @@ one member:
   ratios); ``H`` is its least-squares relaxation. Equivalently ``τ_opt`` is the weighted least-
   norm solution ``argmin ||W τ||² s.t. Jᵀ τ = f_d`` with ``W = diag(w)``, which is how the QP
   form (:mod:`wbc.tasks.torque_distribution`) states it; for ``N − 3 > 1`` redundant torques the
-  same formula holds with ``α`` a vector (normal equations in the null-space basis).
+  same formula holds with ``α`` a vector (normal equations in the null-space basis). Being a
+  sum of squares, ``H`` usually lowers the *largest* utilisation against ``"min_norm"`` but not
+  always (measured over 865 random arm configurations of ``omni4_arm6`` where no wheel lifts,
+  μ = 0.5, random wrenches: lower in 85 %, median ratio 0.56, above 1.1 in the worst 5 %).
 * ``"minmax"`` (beyond the paper) — minimise the largest utilisation ``max_i |τ_i| w_i`` (an LP
   over ``(τ, t)``). It is the exact no-slip criterion: no wheel slips iff ``max_i u_i ≤ 1``, so
   if any distribution avoids slip, this one does. Closed form on the one-dimensional null

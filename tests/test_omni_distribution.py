@@ -101,6 +101,16 @@ def test_proportional_shifts_torque_to_loaded_wheels():
     assert utilisation(tau, forces, 1.0) < utilisation(tau_min, forces, 1.0)
 
 
+def test_proportional_can_exceed_min_norms_peak_but_minmax_cannot():
+    """H is a sum of squares: it may raise the largest utilisation (here wheel 2, the least
+    loaded, by 23 %) while lowering the others; minmax never does."""
+    f_d, forces = np.array([-40.0, -20.0, -5.0]), np.array([150.0, 110.0, 60.0, 120.0])
+    u = {m: utilisation(ref.torque_distribution(J_PAPER, f_d, forces, method=m), forces, 1.0)
+         for m in METHODS}
+    assert u["proportional"] > 1.2 * u["min_norm"]
+    assert u["minmax"] < u["min_norm"] < u["proportional"]
+
+
 @given(instances())
 def test_minmax_is_the_lp_optimum_and_beats_the_others(inst):
     J, f_d, forces, mu = inst
