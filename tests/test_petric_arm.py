@@ -123,3 +123,40 @@ def test_qp_equals_closed_form(backend, projector, seed, m, rank, lam):
     expected = dls_arm_velocity(J, u, z, lam, projector)
     np.testing.assert_allclose(sol.x, expected, atol=TOL)
     assert_kkt(ws)
+
+
+# ----------------------------------------------------------------------------- the robot's stack
+@pytest.fixture(scope="module")
+def tiago():
+    from wbc.robots import load
+
+    return load("tiago_panda")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_study_arm_stack_is_eq_22_on_the_tiago_panda(tiago, backend):
+    """``arm_stack`` (TCP position task damped by λ, posture one level below, base pinned) on
+    the robot = ``dls_arm_velocity`` of the arm's position Jacobian with ``u = K_p e`` and
+    ``q̇_n = K_n (q_mid − q)``, at random configurations and targets."""
+    from wbc.experiments import petric
+
+    robot = tiago
+    controller = wbc.Controller(robot, petric.arm_stack(robot), backend=backend,
+                                profile="tight", dt=petric.DT)
+    rng = np.random.default_rng(7)
+    na, nb = robot.n_arm, robot.nv_base
+    q_mid = petric._posture_target(robot)[-na:]
+    for _ in range(5):
+        q = petric._start(robot)
+        q[:3] = rng.uniform(-1, 1, 3)
+        q[-na:] += rng.uniform(-0.3, 0.3, na)
+        target = np.eye(4)
+        x = robot.frame_pose(q, "ee")[:3, 3]
+        target[:3, 3] = x + rng.uniform(-0.1, 0.1, 3)
+        command = controller.step(q, ee=target)
+        assert controller.last_solution.ok, controller.last_solution.message
+        J = robot.frame_jacobian(q, "ee")[:3, nb:]
+        expected = dls_arm_velocity(J, petric.KP * (target[:3, 3] - x),
+                                    petric.K_POSTURE * (q_mid - q[-na:]))
+        np.testing.assert_array_equal(command[:nb], 0.0)
+        np.testing.assert_allclose(command[nb:], expected, atol=TOL)
