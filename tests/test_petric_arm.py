@@ -134,15 +134,17 @@ def tiago():
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_study_arm_stack_is_eq_22_on_the_tiago_panda(tiago, backend):
-    """``arm_stack`` (TCP position task damped by λ, posture one level below, base pinned) on
-    the robot = ``dls_arm_velocity`` of the arm's position Jacobian with ``u = K_p e`` and
+@pytest.mark.parametrize("projector", ["exact", "damped"])
+def test_study_arm_stack_is_eq_22_on_the_tiago_panda(tiago, backend, projector):
+    """``arm_stack`` (base pinned; exact: TCP position task damped by λ, posture one level
+    below; damped: one level with the posture weighted by λ) on the robot =
+    ``dls_arm_velocity`` of the arm's position Jacobian with ``u = K_p e`` and
     ``q̇_n = K_n (q_mid − q)``, at random configurations and targets."""
     from wbc.experiments import petric
 
     robot = tiago
-    controller = wbc.Controller(robot, petric.arm_stack(robot), backend=backend,
-                                profile="tight", dt=petric.DT)
+    controller = wbc.Controller(robot, petric.arm_stack(robot, projector=projector),
+                                backend=backend, profile="tight", dt=petric.DT)
     rng = np.random.default_rng(7)
     na, nb = robot.n_arm, robot.nv_base
     q_mid = petric._posture_target(robot)[-na:]
@@ -157,6 +159,14 @@ def test_study_arm_stack_is_eq_22_on_the_tiago_panda(tiago, backend):
         assert controller.last_solution.ok, controller.last_solution.message
         J = robot.frame_jacobian(q, "ee")[:3, nb:]
         expected = dls_arm_velocity(J, petric.KP * (target[:3, 3] - x),
-                                    petric.K_POSTURE * (q_mid - q[-na:]))
+                                    petric.K_POSTURE * (q_mid - q[-na:]),
+                                    projector=projector)
         np.testing.assert_array_equal(command[:nb], 0.0)
         np.testing.assert_allclose(command[nb:], expected, atol=TOL)
+
+
+def test_study_arm_stack_refuses_an_unknown_projector(tiago):
+    from wbc.experiments import petric
+
+    with pytest.raises(wbc.InvalidValueError, match="projector"):
+        petric.arm_stack(tiago, projector="pseudo")

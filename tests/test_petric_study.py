@@ -34,6 +34,8 @@ def test_contract(study):
             assert np.shape(series["ee_error"]) == (n,)
             assert np.all(np.isfinite(series["ee_error"]))
     assert "fixed_base" in data["runs"]["forward"]
+    for name in petric.EQ26_SCENARIOS:
+        assert "decoupled_eq26" in data["runs"][name]
     for timing in data["timing"].values():
         assert timing["tick_median_s"] > 0 and timing["tick_p95_s"] >= timing["tick_median_s"]
     assert data["figures"]
@@ -75,6 +77,10 @@ def test_claims_are_computed_from_the_runs(study):
     assert claims["damped_projector_leak"]["ours"]["max_mm_s"] == pytest.approx(1e3 * leak.max())
     # the leak of eq. 26's damped projector is real and within its bound √λ/2·||q̇_n||
     assert claims["damped_projector_leak"]["holds"] is False and leak.max() > 1e-4
+    eq26 = claims["damped_projector_leak"]["ours"]["rms_tcp_error"]
+    for name in petric.EQ26_SCENARIOS:
+        assert eq26[name]["eq26_mm"] == pytest.approx(
+            1e3 * _rms(runs[name]["decoupled_eq26"]["ee_error"]))
 
     wb = {s: _rms(runs[s]["whole_body"]["ee_error"]) for s in petric.SCENARIOS}
     de = {s: _rms(runs[s]["decoupled"]["ee_error"]) for s in petric.SCENARIOS}
