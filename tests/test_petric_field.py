@@ -417,3 +417,81 @@ def test_v_and_omega_are_continuous_across_every_branch_switch_within_a_mode(hea
         assert np.all(np.abs(v_b - v_a) <= max(f.k_f, f.k_r) * 2 * h * (1 + 1e-6) + 1e-12), name
         assert np.all(np.abs(w_b - w_a) <= slope_w * 2 * h * (1 + 1e-6) + 1e-12), name
     assert checked > 7_000
+
+
+# ----------------------------------------------------------------------------- §II-A: invariance
+BASE = None
+
+
+def _base():
+    """Tiago's differential-drive base: the kinematic model of eqs. 1–3 (exact arcs)."""
+    global BASE
+    if BASE is None:
+        from wbc.robots import tiago_base
+        BASE = tiago_base()
+    return BASE
+
+
+def _in_base_frame(pose, p_world):
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    dx, dy = p_world[0] - pose[0], p_world[1] - pose[1]
+    return np.array([c * dx + s * dy, -s * dx + c * dy, p_world[2]])
+
+
+def _closed_loop_d_r(field, p_world, ticks, dt=0.01):
+    """``d_r`` per tick while the field drives the base (eqs. 1–3) and the arm holds the TEE
+    fixed in the world (``p_world`` [m]; the base starts at the origin, at rest)."""
+    field.reset()
+    pose, out = np.zeros(3), np.empty(ticks)
+    for k in range(ticks):
+        p = _in_base_frame(pose, p_world)
+        out[k] = field.distances(p)[1]
+        pose = _base().integrate_pose(pose, field.step(p), dt)
+    return out
+
+
+def test_retreat_law_pushes_out_only_points_in_front_of_the_axle():
+    """§II-A.2's argument in continuous time: with ``v < 0`` the rate of ``d_r`` for a TEE fixed
+    in the world is ``−v·x/ρ`` (``ρ`` the distance eq. 6 measures; ω does not change it). Over
+    10⁴ random retreat-zone points it is > 0 for ``x > 0`` — and < 0 for ``x < 0``: behind the
+    axle the retreat drives the base onto the point, which the paper's argument overlooks."""
+    f, rng, dt = VelocityField(), np.random.default_rng(6), 1e-6
+    ring = rng.uniform(0.02, f.b_d + f.delta_r - 0.01, 10_000)
+    angle = rng.uniform(-np.pi, np.pi, 10_000)
+    p = np.column_stack([ring * np.cos(angle), ring * np.sin(angle),
+                         rng.uniform(-0.4, f.l0, 10_000)])
+    rates = np.empty(10_000)
+    for i, point in enumerate(p):
+        after = _base().integrate_pose(np.zeros(3), f.raw(point), dt)
+        rates[i] = (f.distances(_in_base_frame(after, point))[1] - f.distances(point)[1]) / dt
+    front, behind = p[:, 0] > 1e-3, p[:, 0] < -1e-3
+    assert np.all(rates[front] > 0.0) and np.all(rates[behind] < 0.0)
+    v = f.raw(p)[0]
+    np.testing.assert_allclose(rates, -v * p[:, 0] / np.hypot(p[:, 0], p[:, 1]), atol=1e-4)
+
+
+def test_safe_region_stays_safe_where_the_forward_zone_does_not_reach_it():
+    """Closed loop, TEE held fixed in the world (with the arm's joints frozen instead, ``p`` is
+    constant in the base frame and the property is vacuous), base from rest, 10 ms ticks: for
+    ``z ≥ 0`` the forward zone (``d_f < Δ_f``) lies ≥ 4.5 cm outside the retreat zone, and
+    ``d_r ≥ Δ_r`` at the start stays so — 60 random placements × 150 ticks."""
+    f, rng = VelocityField(), np.random.default_rng(7)
+    runs = 0
+    while runs < 60:
+        p_world = np.array([*rng.uniform(-1.0, 1.0, 2), rng.uniform(0.0, 1.1)])
+        if f.distances(p_world)[1] < f.delta_r:
+            continue
+        runs += 1
+        assert _closed_loop_d_r(f, p_world, 150).min() >= f.delta_r, p_world
+
+
+def test_safe_region_is_entered_where_the_forward_zone_touches_it():
+    """Counterexample to §II-A.2 as stated: below ``z ≈ −0.055`` m the forward zone reaches the
+    retreat boundary, so the base drives forward into it (``v = K_f(Δ_f − d_f) > 0`` on the
+    boundary) and the smoothing lag carries it further: 1.4 cm deep here, starting outside; the
+    base then settles on the boundary from inside, where the two laws push against each other."""
+    f = VelocityField()
+    d_r = _closed_loop_d_r(f, np.array([0.7936, 0.1666, -0.3397]), 400)
+    assert d_r[0] >= f.delta_r
+    assert f.delta_r - d_r.min() > 0.01
+    assert 0.0 < f.delta_r - d_r[-1] < 1e-4
