@@ -13,11 +13,14 @@ paper, the y motion needs only two wheels (wheels 1 and 3 roll along y, wheels 0
 x) and the diagonal needs all four (the paper's Fig. 5 is not in its text; this is the wheel
 layout its "just two motors were used" implies for our wheel placement).
 
-Methods: ``"position"`` — eqs. 3–4, wheel angle increments tracked by the wheels' PID servos
-(in ``"y"`` only the two motors the motion needs are powered, the others roll freely, as in the
-paper's first experiment); ``"min_norm"``, ``"proportional"``, ``"minmax"`` — eq. 6 force
-control whose platform force is distributed over the four wheels by the distribution's QP stack
-(:class:`wbc.tasks.TorqueDistribution`) on the chosen backend.
+Methods: ``"position"`` — eqs. 3–4, wheel angle increments from the odometry pose tracked by
+the wheels' PID servos; ``"position_reference"`` — the other reading of eq. 3's "present
+position" (the previous reference: absolute wheel angle trajectories, no pose feedback; see
+:class:`wbc.robots.OmniPositionControl`); in ``"y"`` both power only the two motors the motion
+needs, the others roll freely, as in the paper's first experiment; ``"min_norm"``,
+``"proportional"``, ``"minmax"`` — eq. 6 force control whose platform force is distributed
+over the four wheels by the distribution's QP stack (:class:`wbc.tasks.TorqueDistribution`) on
+the chosen backend.
 
 Per scenario and method the runs hold ``"t"`` [s], ``"base_velocity"`` (N, 3) [m/s, m/s, rad/s]
 (true body twist), ``"ee_error"`` [m] — here the platform's true position error to its target
@@ -66,8 +69,11 @@ PARAMETERS = {
 #: scenario -> (unit direction in the world, distance [m]); the paper's Fig. 6 and Fig. 7.
 SCENARIOS = {"y": (np.array([0.0, 1.0]), 0.40),
              "diagonal": (np.array([1.0, 1.0]) / math.sqrt(2.0), 0.40 * math.sqrt(2.0))}
-METHODS = ("position", "min_norm", "proportional", "minmax")
-DISTRIBUTIONS = METHODS[1:]
+#: method -> (eq. 3's present position, the servo mode) for position control.
+POSITION_CONTROL = {"position": ("odometry", "angle"),
+                    "position_reference": ("reference", "angle_target")}
+DISTRIBUTIONS = ("min_norm", "proportional", "minmax")
+METHODS = (*POSITION_CONTROL, *DISTRIBUTIONS)
 
 
 def trapezoid(distance: float, speed: float, acceleration: float):
@@ -121,10 +127,11 @@ def simulate(robot, scenario: str, method: str, backend: str = "daqp", substeps:
     errors = dict(gain_error=p["gain_error"], torque_noise=p["torque_noise_Nm"],
                   radius_error=p["radius_error"], mu=p["mu"], substeps=substeps,
                   arm_velocity=arm_swing(seconds, p["arm_pan_rad"]))
-    if method == "position":
+    if method in POSITION_CONTROL:
+        present, servo = POSITION_CONTROL[method]
         two_motors = [False, True, False, True] if scenario == "y" else None
-        dynamics = OmniDynamics(servo="angle", active=two_motors, **errors)
-        controller = OmniPositionControl(robot)
+        dynamics = OmniDynamics(servo=servo, active=two_motors, **errors)
+        controller = OmniPositionControl(robot, present)
     else:
         dynamics = OmniDynamics(**errors)
         controller = _Recording(OmniForceControl(robot, mu=p["mu"], distribution=TorqueDistribution(
@@ -220,14 +227,15 @@ def timing(robot, states: list, backends, budget_s: float) -> tuple[dict, list[s
     return out, failed
 
 
-def claims(numbers: dict, runs: dict, qp_gap: float) -> list[Claim]:
-    two, four = numbers["y"]["position"], numbers["diagonal"]["position"]
+def _position_claims(numbers: dict, method: str, suffix: str, reading: str) -> list[Claim]:
+    """The paper's two position-control experiments, for one reading of eq. 3."""
+    two, four = numbers["y"][method], numbers["diagonal"][method]
     two_rel = two["final_odometry_error_m"] / SCENARIOS["y"][1]
     four_rel = four["final_odometry_error_m"] / SCENARIOS["diagonal"][1]
-    out = [
-        Claim("two_wheel_shortfall",
-              "two motors, 40 cm along y (position control): the platform really travels less "
-              "than odometry reports", "37.7 cm reached of 40 cm (5.8 % short)",
+    return [
+        Claim(f"two_wheel_shortfall{suffix}",
+              f"two motors, 40 cm along y (position control, {reading}): the platform really "
+              "travels less than odometry reports", "37.7 cm reached of 40 cm (5.8 % short)",
               {"true_cm": round(100 * two["true_travel_m"], 2),
                "odometry_cm": round(100 * two["odometry_travel_m"], 2),
                "error_pct": round(100 * two_rel, 2)},
@@ -235,20 +243,27 @@ def claims(numbers: dict, runs: dict, qp_gap: float) -> list[Claim]:
               "final positions along y; qualitative anchor: our floor is flat and the wheels "
               "ideal apart from the documented servo and radius errors, so the magnitude is not "
               "expected to match"),
-        Claim("four_wheel_error",
-              "four motors, x = y to 40 cm (position control): odometry error after 56.6 cm",
-              "8.8 cm (15.5 %)",
+        Claim(f"four_wheel_error{suffix}",
+              f"four motors, x = y to 40 cm (position control, {reading}): odometry error after "
+              "56.6 cm", "8.8 cm (15.5 %)",
               {"error_cm": round(100 * four["final_odometry_error_m"], 2),
                "error_pct": round(100 * four_rel, 2)},
               four_rel > 0.5 * 0.155,
-              "final |p_true − p_odometry|; holds if at least half the paper's relative error "
-              "(the paper attributes its error to slip on real, uneven ground and rollers)"),
-        Claim("four_wheels_worse_than_two",
-              "with four motors mutual servo errors cause slip: the relative odometry error is "
-              "larger than with two", "15.5 % vs 5.8 %",
+              "final |p_true − p_odometry|; holds if at least half the paper's relative error. "
+              "The paper attributes its error to slip on real ground; in our model the servos' "
+              "mutual errors (gain, noise, radius) cause only millimetres of slip"),
+        Claim(f"four_wheels_worse_than_two{suffix}",
+              f"with four motors mutual servo errors cause slip ({reading}): the relative "
+              "odometry error is larger than with two", "15.5 % vs 5.8 %",
               {"four_pct": round(100 * four_rel, 2), "two_pct": round(100 * two_rel, 2)},
               four_rel > two_rel, "final odometry error over the distance travelled"),
     ]
+
+
+def claims(numbers: dict, runs: dict, qp_gap: float) -> list[Claim]:
+    out = (_position_claims(numbers, "position", "", "present position from odometry")
+           + _position_claims(numbers, "position_reference", "_reference",
+                              "present position = previous reference"))
     forces = np.vstack([np.asarray(m["normal_forces"]) for s in runs.values()
                         for m in s.values()])
     ratio = float(forces.max() / forces.min())
@@ -304,11 +319,12 @@ def figures(runs: dict, numbers: dict, out_dir: Path) -> list[str]:
         ax.legend(fontsize=7)
     names.append(save_figure(fig, out_dir / "omni_paths.png"))
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    width = 0.2
+    width = 0.8 / len(METHODS)
     for ax, (scenario, per_method) in zip(axes, numbers.items(), strict=True):
         for k, (method, n) in enumerate(per_method.items()):
-            ax.bar(np.arange(4) + (k - 1.5) * width, 1e3 * np.asarray(n["slip_per_wheel_m"]),
-                   width, label=method)
+            offset = (k - 0.5 * (len(METHODS) - 1)) * width
+            ax.bar(np.arange(4) + offset, 1e3 * np.asarray(n["slip_per_wheel_m"]), width,
+                   label=method)
         ax.set_xticks(range(4))
         ax.set_xlabel("wheel")
         ax.set_ylabel("slip distance [mm]")
@@ -353,8 +369,11 @@ diagonal all four.
 
 **Controllers.** Position control: eq. 3 with D = I (wheel-side angles), the servo PID of eq. 4
 (k_p = 22.5 N m/rad, k_v = 4.5 N m s/rad, k_i = 50 N m/(rad s), our choice) on each wheel's own
-encoder, target = the wheel's angle at the tick's start + Δθ (our reading of "sending Δθ(t) to
-the servo controller"). Force control: eq. 6 with M = diag(45, 45, 2), k_p = M·16 s⁻²,
+encoder. Eq. 3's "present position" is ambiguous; both readings run: `position` — the odometry
+pose, the servo target being the wheel's angle at the tick's start + Δθ; `position_reference`
+— the previous reference, the increments summed into absolute wheel angle trajectories that
+each servo tracks (no pose feedback; the servos' integrals fight each other's radius and gain
+errors). Force control: eq. 6 with M = diag(45, 45, 2), k_p = M·16 s⁻²,
 k_v = M·8 s⁻¹ (our choice), world frame, then the distribution's QP on the chosen backend;
 normal forces from the measured arm joints.
 
@@ -375,7 +394,7 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
             simulated, references, controller = simulate(robot, scenario, method, backend,
                                                          substeps)
             s = series(simulated, references)
-            if method != "position":
+            if method in DISTRIBUTIONS:
                 s["_raw"] = {"command": simulated.command, "J": robot.base.jacobian,
                              "wrench": controller.wrench, "forces": controller.forces}
                 if method == "proportional":

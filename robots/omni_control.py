@@ -2,12 +2,14 @@
 
 * :class:`OmniPositionControl` — eq. 3, position control through the wheel Jacobian: each
   tick the wheels are sent the angle increments ``Δθ = D J Δx_b`` that take the platform from
-  its present (odometry) pose ``x`` to the desired one ``x_d`` (``Δx_b = (Rᵀ(φ) (p_d − p),
-  φ_d − φ)``, the displacement in the platform frame, where eq. 1's ``J`` applies). Each wheel's
-  servo then closes its own PID loop (eq. 4) — on the real robot inside the servo controllers,
-  here in :class:`~wbc.robots.omni_dynamics.OmniDynamics` with ``servo="angle"``. ``D = g I``
-  converts wheel angles into motor angles through the gear ratio ``g``; our servo model works
-  on the wheel side, so ``D = I`` here (the reduction cancels between eq. 3 and eq. 4's gains).
+  its present pose ``x`` to the desired one ``x_d`` (``Δx_b = (Rᵀ(φ) (p_d − p), φ_d − φ)``,
+  the displacement in the platform frame, where eq. 1's ``J`` applies; two readings of "present
+  pose", see the class). Each wheel's servo then closes its own PID loop (eq. 4) — on the real
+  robot inside the servo controllers, here in
+  :class:`~wbc.robots.omni_dynamics.OmniDynamics` (``servo="angle"`` or ``"angle_target"``).
+  ``D = g I`` converts wheel angles into motor angles through the gear ratio ``g``; our servo
+  model works on the wheel side, so ``D = I`` here (the reduction cancels between eq. 3 and
+  eq. 4's gains).
 * :class:`OmniForceControl` — eq. 6, ``f_d = M ẍ_d + k_v (ẋ_d − ẋ) + k_p (x_d − x)`` in the
   world frame, turned into the platform frame and distributed over the four wheel torques
   (eqs. 7–13) by a distribution: the closed forms :func:`wbc.solvers.reference.torque_distribution`
@@ -66,20 +68,46 @@ def _reference(references: dict, name: str, required: bool = False) -> np.ndarra
 
 
 class OmniPositionControl:
-    """Eq. 3: wheel angle increments ``Δθ = J Δx_b`` [rad] towards the target (module docstring).
+    """Eq. 3: wheel angle commands ``D J Δx_b`` [rad] towards the target (module docstring).
+
+    Eq. 3 reads ``Δθ(t) = D J (x_d(t) − x(t))`` with ``x(t)`` "the present position"; the text
+    does not say where the present position comes from. Two readings, ``present=``:
+
+    * ``"odometry"`` (default) — ``x(t)`` is the odometry pose the controller is given; the
+      command is the increment ``Δθ`` from the wheels' present angles, for the servos of
+      :class:`~wbc.robots.omni_dynamics.OmniDynamics` with ``servo="angle"``.
+    * ``"reference"`` — ``x(t)`` is where the previous command put the platform,
+      ``x_d(t − dt)`` (the first tick: the measured start pose), as in the displacement
+      commands per sampling time the paper describes for its arm; the increments are summed
+      into absolute wheel angle targets (the command, for ``servo="angle_target"``): each
+      wheel's servo then tracks its own angle trajectory, and the platform's pose is never fed
+      back. One controller per run (it keeps the sum).
 
     Args:
         robot: a mobile manipulator on an omni base (``"omni4_arm6"``).
+        present: ``"odometry"`` or ``"reference"``.
     """
 
     last_solution = None
 
-    def __init__(self, robot) -> None:
+    def __init__(self, robot, present: str = "odometry") -> None:
+        if present not in ("odometry", "reference"):
+            raise InvalidValueError(f"present must be 'odometry' or 'reference', got "
+                                    f"{present!r}")
+        self.present = present
         self.jacobian = np.asarray(robot.base.jacobian, dtype=float)
+        self._previous: np.ndarray | None = None
+        self._targets = np.zeros(self.jacobian.shape[0])
 
     def step(self, q, v=None, **references) -> np.ndarray:
-        error = platform_error(q, _reference(references, "target", required=True))
-        return self.jacobian @ _to_platform(float(q[2]), error)
+        target = _reference(references, "target", required=True)
+        if self.present == "odometry":
+            return self.jacobian @ _to_platform(float(q[2]), platform_error(q, target))
+        present = np.asarray(q[:3], dtype=float) if self._previous is None else self._previous
+        self._targets = self._targets + self.jacobian @ _to_platform(
+            float(present[2]), platform_error(present, target))
+        self._previous = target
+        return self._targets.copy()
 
 
 class OmniForceControl:

@@ -3,8 +3,9 @@ actuation model for torque or wheel-angle commands).
 
 :class:`OmniDynamics` replaces the kinematic actuation chain for the four-omni-wheel platform
 of the torque-redundancy paper (``"omni4_arm6"``): the controller commands wheel torques
-(``Simulation(..., command="torque")``) — or, with ``servo="angle"``, wheel angle increments
-that the wheels' own PID servos (the paper's eq. 4) turn into torques — and the model
+(``Simulation(..., command="torque")``) — or, with ``servo="angle"`` / ``"angle_target"``,
+wheel angle commands that the wheels' own PID servos (the paper's eq. 4) turn into torques —
+and the model
 integrates
 
 * the **platform**, a planar rigid body of mass ``m`` (45 kg: the paper's 15 kg platform and
@@ -129,11 +130,12 @@ class OmniDynamics(Actuation):
 
     Args:
         mu: friction coefficient(s) μ_i [-] between wheel and ground (scalar or (4,), > 0).
-        servo: ``"torque"`` — the command's first ``n_wheels`` entries are wheel torques [N m];
-            ``"angle"`` — they are wheel angle increments Δθ [rad] (eq. 3), tracked by each
-            wheel's PID servo (eq. 4) at the sub-step rate on the wheel's own encoder: the
-            target is the angle at the tick's start plus Δθ, the integral persists.
-        gains: the servos' ``(k_p, k_v, k_i)`` (``servo="angle"``), wheel side.
+        servo: ``"torque"`` — the command holds the wheel torques [N m]; ``"angle"`` — wheel
+            angle increments Δθ [rad] (eq. 3), tracked by each wheel's PID servo (eq. 4) at the
+            sub-step rate on the wheel's own encoder, the target being the wheel's angle at the
+            tick's start plus Δθ; ``"angle_target"`` — the same servos tracking absolute wheel
+            angle targets [rad], counted from the run's start. The servos' integral persists.
+        gains: the servos' ``(k_p, k_v, k_i)`` (angle servos), wheel side.
         active: which wheels are powered, (n_wheels,) bools (default all); an unpowered wheel
             gets no torque and rolls freely (the paper's two-motor experiment).
         gain_error: relative torque gain error(s) of the servos [-], scalar or (n_wheels,).
@@ -155,8 +157,9 @@ class OmniDynamics(Actuation):
                  mass_com: Callable | None = None,
                  arm_velocity: Callable[[float], Any] | None = None, substeps: int = 10,
                  g: float = 9.81) -> None:
-        if servo not in ("torque", "angle"):
-            raise InvalidValueError(f"servo must be 'torque' or 'angle', got {servo!r}")
+        if servo not in ("torque", "angle", "angle_target"):
+            raise InvalidValueError(f"servo must be 'torque', 'angle' or 'angle_target', got "
+                                    f"{servo!r}")
         if int(substeps) < 1:
             raise InvalidValueError(f"substeps must be >= 1, got {substeps!r}")
         for name, value in (("wheel_inertia", wheel_inertia), ("yaw_inertia", yaw_inertia),
@@ -220,6 +223,7 @@ class OmniDynamics(Actuation):
         # wheel state, initialised from the first tick's velocity (rolling without slip)
         self._rates: np.ndarray | None = None
         self._integral = np.zeros(self._n)
+        self._angle = np.zeros(self._n)  # wheel angles since the run's start [rad]
 
     def normal_forces(self, robot, q) -> np.ndarray:
         """The wheels' normal forces [N] in configuration ``q`` (true configuration)."""
@@ -230,7 +234,7 @@ class OmniDynamics(Actuation):
         command = np.asarray(state.command, dtype=float)
         if command.shape != (self._n,):
             raise ShapeError(f"OmniDynamics: the command must hold the {self._n} wheel "
-                             f"{'torques' if self.servo == 'torque' else 'angle increments'}, "
+                             f"{'torques' if self.servo == 'torque' else 'angle commands'}, "
                              f"got shape {command.shape}")
         v = state.v[:3].copy()
         if self._rates is None:
@@ -240,6 +244,8 @@ class OmniDynamics(Actuation):
         noise = self.torque_noise * state.rng.standard_normal(self._n)
         kp, kv, ki = self.gains
         h, R, G, M_inv = self._h, self._radii, self._G, self._M_inv
+        # the servos' targets as angles since the tick's start [rad]
+        target = command if self.servo == "angle" else command - self._angle
         turned = np.zeros(self._n)  # wheel angle since the tick's start [rad]
         slid = np.zeros(self._n)
         peak = np.zeros(self._n)
@@ -248,7 +254,7 @@ class OmniDynamics(Actuation):
             if self.servo == "torque":
                 wanted = command
             else:  # eq. 4 on the wheel's own encoder; the target holds over the tick
-                error = command - turned
+                error = target - turned
                 self._integral += error * h
                 wanted = kp * error - kv * rates + ki * self._integral
             tau = self._gain * wanted + noise * (self._gain != 0)
@@ -262,6 +268,7 @@ class OmniDynamics(Actuation):
             peak = np.maximum(peak, np.abs(F) / np.maximum(limit, 1e-300))
             torque_sum += tau
         self._rates = rates
+        self._angle += turned
         state.v_true = np.empty(int(state.robot.nv))
         state.v_measured = np.empty_like(state.v_true)
         state.v_true[:3] = v

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import wbc.robots
-from wbc.errors import ShapeError, WbcError
+from wbc.errors import InvalidValueError, ShapeError, WbcError
 from wbc.robots.omni_control import OmniForceControl, OmniPositionControl, platform_error
 from wbc.robots.omni_dynamics import OmniDynamics
 from wbc.sim import Simulation
@@ -48,6 +48,22 @@ def test_position_control_is_eq_3_in_the_platform_frame(robot, pose, target):
     displacement = np.r_[rotation(pose[2]).T @ error[:2], error[2]]
     np.testing.assert_allclose(command, robot.base.jacobian @ displacement, atol=1e-12)
     assert -math.pi < error[2] <= math.pi
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_reference_reading_sums_the_reference_increments(robot, seed):
+    """present="reference": x(t) = x_d(t − dt), so at constant heading the wheel angle targets
+    telescope to J Rᵀ (x_d(t) − x(0))."""
+    rng = np.random.default_rng(seed)
+    q = robot.neutral()
+    q[:3] = rng.uniform(-1, 1, 3)
+    controller = OmniPositionControl(robot, present="reference")
+    for _ in range(5):
+        target = np.r_[q[:2] + rng.uniform(-0.5, 0.5, 2), q[2]]
+        command = controller.step(q, target=target)  # q (the measurement) is not fed back
+    displacement = np.r_[rotation(q[2]).T @ (target[:2] - q[:2]), 0.0]
+    np.testing.assert_allclose(command, robot.base.jacobian @ displacement, atol=1e-12)
 
 
 def test_heading_error_is_wrapped(robot):
@@ -110,6 +126,15 @@ def test_position_control_reaches_a_target_through_the_wheel_servos(robot):
     np.testing.assert_allclose(run.q_final[:3], goal, atol=1e-3)
 
 
+def test_wheel_angle_trajectories_reach_the_target(robot):
+    goal = np.array([0.05, -0.03, 0.0])
+    run = Simulation(robot, OmniPositionControl(robot, present="reference"), DT,
+                     [OmniDynamics(mu=MU, servo="angle_target")], command="torque").run(
+        seconds=5.0, references=lambda t: {"target": min(t / 2.0, 1.0) * goal})
+    assert run.signals["slip_distance"].sum() < 1e-9
+    np.testing.assert_allclose(run.q_final[:3], goal, atol=1e-3)
+
+
 def test_a_position_step_makes_the_wheels_slip_and_odometry_drift(robot):
     goal = np.array([0.05, -0.03, 0.1])
     run = Simulation(robot, OmniPositionControl(robot), DT,
@@ -140,5 +165,7 @@ def test_missing_or_malformed_references_are_refused(robot):
         OmniForceControl(robot).step(q, v)
     with pytest.raises(ShapeError, match="velocity"):
         OmniForceControl(robot).step(q, v, target=np.zeros(3), velocity=np.zeros(2))
+    with pytest.raises(InvalidValueError, match="present"):
+        OmniPositionControl(robot, present="camera")
     with pytest.raises(ShapeError, match="kp"):
         OmniForceControl(robot, kp=[1.0, 2.0])

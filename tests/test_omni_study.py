@@ -13,7 +13,9 @@ import pytest  # noqa: E402
 from wbc.experiments import omni  # noqa: E402
 
 CLAIMS = {"two_wheel_shortfall", "four_wheel_error", "four_wheels_worse_than_two",
-          "unequal_normal_forces", "proportional_less_slip_y", "minmax_at_most_proportional_y",
+          "two_wheel_shortfall_reference", "four_wheel_error_reference",
+          "four_wheels_worse_than_two_reference", "unequal_normal_forces",
+          "proportional_less_slip_y", "minmax_at_most_proportional_y",
           "proportional_less_slip_diagonal", "minmax_at_most_proportional_diagonal",
           "qp_equals_closed_form"}
 
