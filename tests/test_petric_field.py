@@ -495,3 +495,25 @@ def test_safe_region_is_entered_where_the_forward_zone_touches_it():
     assert d_r[0] >= f.delta_r
     assert f.delta_r - d_r.min() > 0.01
     assert 0.0 < f.delta_r - d_r[-1] < 1e-4
+
+
+@settings(max_examples=20)
+@given(st.integers(0, 2**32 - 1), st.floats(0.5, 3.0), st.floats(0.5, 3.0), st.floats(0.0, 0.3),
+       st.floats(0.0, 0.3), st.floats(0.01, 0.2))
+def test_zones_decide_the_sign_of_v_and_the_source_of_omega(seed, k_f, k_r, delta_f, delta_r,
+                                                           epsilon):
+    """Eqs. 7 and 13 over random parameters, 500 points per example (10⁴ in all): the base
+    retreats exactly in the retreat zone, advances exactly in the forward zone outside it, and
+    stands still elsewhere; ω is ``±ω_max·η`` in the retreat zone and ``±K_ω·γ`` outside."""
+    f = VelocityField(k_f=k_f, k_r=k_r, delta_f=delta_f, delta_r=delta_r, epsilon=epsilon)
+    p = random_points(np.random.default_rng(seed), 500)
+    d_f, d_r, phi = f.distances(p)
+    v, omega = f.raw(p)
+    retreat, forward = d_r < delta_r, (d_f < delta_f) & (d_r >= delta_r)
+    assert np.all(v[retreat] < 0.0) and np.all(v[forward] > 0.0)
+    assert np.all(v[~retreat & ~forward] == 0.0)
+    eta = smoothstep((delta_r - d_r) / epsilon)
+    gamma = smoothstep((np.abs(phi) - f.phi_min) / (f.phi_max - f.phi_min))
+    np.testing.assert_allclose(np.abs(omega[retreat]), f.omega_max * eta[retreat], atol=1e-15)
+    np.testing.assert_allclose(np.abs(omega[~retreat]), f.k_omega * gamma[~retreat], atol=1e-15)
+    assert np.all(omega[~retreat & (np.abs(phi) <= f.phi_min)] == 0.0)      # dead band
