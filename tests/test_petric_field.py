@@ -200,7 +200,9 @@ LIMITED = VelocityField(v_max=0.8, omega_max=0.6, dv_max=0.3, domega_max=0.2)
 _WORKSPACES: dict = {}
 PROXQP_WARM_START = ("proxqp, warm-started from the previous tick, reaches max_iter on the "
                      "min-norm level of the whole-body-shaped stack in ~4 % of random ticks "
-                     "(11 of 300; 0 of 300 from a fresh workspace or without the arm block)")
+                     "(11 of 300; 0 of 300 from a fresh workspace or without the arm block); "
+                     "not this level's doing: LinearTask + Bounds with the same numbers fail "
+                     "on the same ticks")
 
 
 def _rate_limit_workspace(backend, arm: int):
