@@ -315,8 +315,8 @@ def _simulate(robot, controller, name: str, scale: float, seconds: float | None 
 
     signals = {"ee_error": ee_error,
                "ee_position": lambda tick: tick.robot.frame_pose(tick.q, "ee")[:3, 3].copy(),
-               "ee_desired": lambda tick: desired(tick.t)}
-    signals["tee"] = lambda tick: driver.tee(tick.q)
+               "ee_desired": lambda tick: desired(tick.t),
+               "tee": lambda tick: driver.tee(tick.q)}
     sim = Simulation(robot, controller, DT, actuation=chain, signals=signals)
     seconds = SCENARIOS[name].seconds * scale if seconds is None else seconds
     return sim.run(seconds=seconds, q0=q0, references=reference)
@@ -336,11 +336,14 @@ def _leak(robot, run) -> np.ndarray:
 
 
 def _series(run, leak=None) -> dict:
+    """The JSON series of a run: ``t`` [s], ``base_velocity`` (N, 2) [m/s, rad/s] (true),
+    ``ee_error`` [m], ``base_pose`` (N, 3) [m, m, rad], ``command_base`` (N, 2) (the base's
+    command), ``ee_position`` / ``ee_desired`` (N, 3) [m] (world), ``tee`` (N, 3) [m] (the
+    field's input), and ``leak`` [m/s] (:func:`_leak`) for the decoupled runs."""
     s = {"t": run.t, "base_velocity": run.base_velocity, "ee_error": run.signals["ee_error"],
          "base_pose": run.q[:, :3], "command_base": run.command[:, :2],
          "ee_position": run.signals["ee_position"], "ee_desired": run.signals["ee_desired"],
-         "tick_s": run.tick_s}
-    s["tee"] = run.signals["tee"]
+         "tee": run.signals["tee"]}
     if leak is not None:
         s["leak"] = leak
     return {k: np.asarray(v) for k, v in s.items()}
@@ -368,13 +371,10 @@ def _mode_timing(field, rounds: int) -> dict[str, np.ndarray]:
 def _field_slices(field) -> dict:
     """``raw`` of the field on an x–y grid [m] at each height of :data:`SLICES_Z`."""
     xs = np.linspace(-1.0, 1.0, 41)
-    v = np.zeros((len(SLICES_Z), xs.size, xs.size))
-    w = np.zeros_like(v)
-    for i, z in enumerate(SLICES_Z):
-        for j, y in enumerate(xs):
-            for k, x in enumerate(xs):
-                v[i, j, k], w[i, j, k] = field.raw(np.array([x, y, z]))
-    return {"x": xs, "y": xs, "z": np.array(SLICES_Z), "v": v, "omega": w}
+    z, y, x = np.meshgrid(np.array(SLICES_Z), xs, xs, indexing="ij")  # (slice, row y, col x)
+    v, w = field.raw(np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1))
+    return {"x": xs, "y": xs, "z": np.array(SLICES_Z), "v": v.reshape(x.shape),
+            "omega": w.reshape(x.shape)}
 
 
 # ----------------------------------------------------------------------------- claims

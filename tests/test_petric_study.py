@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from wbc.experiments import petric
+from wbc.tasks import VelocityField
 
 
 @pytest.fixture(scope="module")
@@ -44,6 +45,10 @@ def test_contract(study):
     assert data["parameters"]["lambda"] == 0.05 and data["parameters"]["quick"] is True
     slices = data["runs"]["field_slices"]["raw"]
     assert np.shape(slices["v"]) == (len(petric.SLICES_Z), len(slices["y"]), len(slices["x"]))
+    field = VelocityField()
+    for i, j, k in ((0, 20, 20), (2, 5, 30), (4, 35, 12)):
+        p = [slices["x"][k], slices["y"][j], slices["z"][i]]
+        assert (slices["v"][i][j][k], slices["omega"][i][j][k]) == pytest.approx(field.raw(p))
 
 
 def _rms(x):
