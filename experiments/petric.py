@@ -466,7 +466,9 @@ def _claims(runs: dict, field, timing_modes: dict) -> list[Claim]:
         "Δv_max, Δω_max, always", limits, worst,
         all(worst[k] <= limits[k] * (1 + 1e-9) for k in worst),
         "largest base command of the field and its per-tick change over every decoupled "
-        "run (the whole-body QP's base command also carries the TCP task's share)"))
+        "run (the whole-body QP's base command also carries the TCP task's share). Δv_max and "
+        "Δω_max are per tick, as printed (VelocityField's reading): at 50 Hz a loose limit "
+        "(50 m/s²); the PMB2's 1 m/s², 1 rad/s² are the actuation model's"))
 
     medians = {mode: float(np.median(s)) for mode, s in timing_modes.items() if len(s)}
     spread = max(medians.values()) / min(medians.values())
