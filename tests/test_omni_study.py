@@ -17,6 +17,7 @@ CLAIMS = {"two_wheel_shortfall", "four_wheel_error", "four_wheels_worse_than_two
           "four_wheels_worse_than_two_reference", "unequal_normal_forces",
           "proportional_less_slip_y", "minmax_at_most_proportional_y",
           "proportional_less_slip_diagonal", "minmax_at_most_proportional_diagonal",
+          "proportional_less_slip_sweep", "minmax_at_most_proportional_sweep",
           "qp_equals_closed_form"}
 
 
