@@ -63,6 +63,7 @@ from wbc.errors import InvalidValueError, ShapeError, WbcError
 from wbc.sim.actuation import Actuation, ActuationState
 
 from .omni import normal_forces, system_com
+from .planar_base import as_vector
 
 __all__ = ["OmniDynamics", "coulomb_forces"]
 
@@ -240,12 +241,13 @@ class OmniDynamics(Actuation):
         if self._rates is None:
             self._rates = (self._G @ v) / self._radii
         rates = self._rates
-        limit = self._mu * self.normal_forces(state.robot, state.q)
+        normal = self.normal_forces(state.robot, state.q)
+        limit = self._mu * normal
         noise = self.torque_noise * state.rng.standard_normal(self._n)
         kp, kv, ki = self.gains
         h, R, G, M_inv = self._h, self._radii, self._G, self._M_inv
-        # the servos' targets as angles since the tick's start [rad]
-        target = command if self.servo == "angle" else command - self._angle
+        if self.servo == "angle_target":  # as angles since the tick's start [rad]
+            command = command - self._angle
         turned = np.zeros(self._n)  # wheel angle since the tick's start [rad]
         slid = np.zeros(self._n)
         peak = np.zeros(self._n)
@@ -254,7 +256,7 @@ class OmniDynamics(Actuation):
             if self.servo == "torque":
                 wanted = command
             else:  # eq. 4 on the wheel's own encoder; the target holds over the tick
-                error = target - turned
+                error = command - turned
                 self._integral += error * h
                 wanted = kp * error - kv * rates + ki * self._integral
             tau = self._gain * wanted + noise * (self._gain != 0)
@@ -274,11 +276,11 @@ class OmniDynamics(Actuation):
         state.v_true[:3] = v
         state.v_measured[:3] = self._J_pinv @ rates
         arm = (np.zeros(self._n_arm) if self.arm_velocity is None
-               else np.asarray(self.arm_velocity(state.t), dtype=float))
+               else as_vector(self.arm_velocity(state.t), self._n_arm, "arm_velocity(t)"))
         state.v_true[3:] = arm
         state.v_measured[3:] = arm
         state.signals["slip_distance"] = slid
         state.signals["friction_utilisation"] = peak
         state.signals["wheel_torque"] = torque_sum / self.substeps
-        state.signals["normal_forces"] = limit / self._mu
+        state.signals["normal_forces"] = normal
         state.signals["wheel_rates"] = rates.copy()

@@ -175,3 +175,16 @@ def test_bad_input_is_refused(robot):
         simulate(robot, np.zeros(4), mu=0.0)
     with pytest.raises(ShapeError, match="command"):
         simulate(robot, np.zeros(3))
+    with pytest.raises(ShapeError, match="arm_velocity"):
+        simulate(robot, np.zeros(4), arm_velocity=lambda t: np.zeros(5))
+
+
+def test_the_arm_moves_the_load_between_the_wheels(robot):
+    pan = np.zeros(6)
+    pan[0] = 1.0  # shoulder pan at 1 rad/s: the centre of mass swings around the mount
+    run, _ = simulate(robot, np.zeros(4), seconds=0.5, mu=0.5, arm_velocity=lambda t: pan)
+    forces = run.signals["normal_forces"]
+    np.testing.assert_allclose(forces.sum(axis=1), 45.0 * 9.81)  # the weight is carried
+    assert np.abs(forces[-1] - forces[0]).max() > 10.0  # [N]
+    np.testing.assert_allclose(run.q_final[3], robot.neutral()[3] + 0.5, atol=1e-12)
+    np.testing.assert_allclose(run.q_est_final, run.q_final, atol=1e-12)  # the arm is exact
