@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import wbc
+from wbc.robots import tiago_base
 from wbc.solvers import available_backends
 from wbc.solvers.reference import rate_limit_interval, rate_limited_twist
 from wbc.tasks import VelocityField, smoothstep
@@ -422,16 +423,7 @@ def test_v_and_omega_are_continuous_across_every_branch_switch_within_a_mode(hea
 
 
 # ----------------------------------------------------------------------------- §II-A: invariance
-BASE = None
-
-
-def _base():
-    """Tiago's differential-drive base: the kinematic model of eqs. 1–3 (exact arcs)."""
-    global BASE
-    if BASE is None:
-        from wbc.robots import tiago_base
-        BASE = tiago_base()
-    return BASE
+BASE = tiago_base()  # the kinematic model of eqs. 1–3 (integrate_pose: exact arcs)
 
 
 def _in_base_frame(pose, p_world):
@@ -448,7 +440,7 @@ def _closed_loop_d_r(field, p_world, ticks, dt=0.01):
     for k in range(ticks):
         p = _in_base_frame(pose, p_world)
         out[k] = field.distances(p)[1]
-        pose = _base().integrate_pose(pose, field.step(p), dt)
+        pose = BASE.integrate_pose(pose, field.step(p), dt)
     return out
 
 
@@ -464,7 +456,7 @@ def test_retreat_law_pushes_out_only_points_in_front_of_the_axle():
                          rng.uniform(-0.4, f.l0, 10_000)])
     rates = np.empty(10_000)
     for i, point in enumerate(p):
-        after = _base().integrate_pose(np.zeros(3), f.raw(point), dt)
+        after = BASE.integrate_pose(np.zeros(3), f.raw(point), dt)
         rates[i] = (f.distances(_in_base_frame(after, point))[1] - f.distances(point)[1]) / dt
     front, behind = p[:, 0] > 1e-3, p[:, 0] < -1e-3
     assert np.all(rates[front] > 0.0) and np.all(rates[behind] < 0.0)
