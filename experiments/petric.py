@@ -559,7 +559,7 @@ def _figures(out_dir: Path, slices: dict, runs: dict, quick: bool) -> list[str]:
             axes[0, c].set(xlabel="t [s]", ylabel="TCP error [mm]",
                            title=f"{SCENARIOS[name].figure}: {name}")
             axes[1, c].set(xlabel="t [s]", ylabel="base v [m/s], ω [rad/s], θ [rad]")
-            axes[2, c].set(xlabel="x [m]", ylabel="y [m]", aspect="equal")
+            axes[2, c].set(xlabel="x [m]", ylabel="y [m]", aspect="equal", adjustable="datalim")
             for ax in axes[:, c]:
                 ax.legend(fontsize=6)
         fig.tight_layout()
