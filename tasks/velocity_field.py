@@ -42,8 +42,8 @@ boundary ``d_r = Δ_r`` (by design: ``v`` jumps from ``K_f(Δ_f − d_f)`` to 0 
 zone reaches the retreat zone, and ``ω_n`` is cut off); within the nominal mode across the ray
 behind the base (``φ = ±π``: ``ω_n`` flips from ``+K_ω`` to ``−K_ω``) and at the vertical axis
 above the capsule (``φ`` undefined); within the retreat zone across ``φ = φ_t`` (the bang-bang
-sign of eq. 10) and ``φ = ±π``, and — without a latched heading — across ``φ = 0``, wherever
-``η > 0``. Everywhere else ``v`` and ``ω`` are Lipschitz in ``p``.
+sign of eq. 10), ``φ = ±π`` and the vertical axis, and — without a latched heading — across
+``φ = 0``, wherever ``η > 0``. Everywhere else ``v`` and ``ω`` are Lipschitz in ``p``.
 
 **Retreat-region invariance** (§II-A.2), with the TEE held fixed in the world (with the arm's
 joints frozen instead, ``p`` is constant in the base frame and the property is vacuous): the
