@@ -109,12 +109,15 @@ def test_lightest_wheel_slips_first(robot):
     np.testing.assert_allclose(normal.sum(), 45.0 * 9.81)
 
 
-def test_free_rolling_conserves_energy(robot):
-    v0 = np.array([0.3, -0.2, 0.0])
-    run, _ = simulate(robot, np.zeros(4), seconds=1.0, v0=v0, mu=0.5)
+@pytest.mark.parametrize("v0, rtol", [([0.3, -0.2, 0.0], 1e-9), ([0.3, -0.2, 0.5], 1e-3)])
+def test_free_rolling_conserves_energy(robot, v0, rtol):
+    """Rolling without slip dissipates nothing: exactly so in translation; while turning, the
+    wheels' rotors are re-accelerated by the ground and the semi-implicit step's O(h) error
+    shows (about 2e-4 over 1 s)."""
+    run, _ = simulate(robot, np.zeros(4), seconds=1.0, v0=np.array(v0), mu=0.5)
     rates = run.signals["wheel_rates"]
     energy = [kinetic_energy(robot, v, w) for v, w in zip(run.v, rates, strict=True)]
-    np.testing.assert_allclose(energy, energy[0], rtol=1e-9)
+    np.testing.assert_allclose(energy, energy[0], rtol=rtol)
     assert run.signals["slip_distance"].max() < 1e-12
 
 
