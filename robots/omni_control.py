@@ -35,7 +35,7 @@ from functools import partial
 import numpy as np
 
 from wbc.errors import InvalidValueError, WbcError
-from wbc.solvers.reference import torque_distribution
+from wbc.solvers.reference import DISTRIBUTION_METHODS, torque_distribution
 
 from .omni import normal_forces, system_com
 from .omni_dynamics import YAW_INERTIA
@@ -148,6 +148,9 @@ class OmniForceControl:
         self.kp = self.inertia * omega**2 if kp is None else as_vector(kp, 3, "kp")
         self.kv = self.inertia * 2.0 * omega if kv is None else as_vector(kv, 3, "kv")
         if distribution is None:
+            if method not in DISTRIBUTION_METHODS:
+                raise InvalidValueError(f"method must be one of {DISTRIBUTION_METHODS}, got "
+                                        f"{method!r}")
             distribution = partial(torque_distribution, self.jacobian, mu=mu, method=method)
         self.distribution = distribution
         self.last_wrench = np.zeros(3)

@@ -167,5 +167,7 @@ def test_missing_or_malformed_references_are_refused(robot):
         OmniForceControl(robot).step(q, v, target=np.zeros(3), velocity=np.zeros(2))
     with pytest.raises(InvalidValueError, match="present"):
         OmniPositionControl(robot, present="camera")
+    with pytest.raises(InvalidValueError, match="method"):
+        OmniForceControl(robot, method="equal")
     with pytest.raises(ShapeError, match="kp"):
         OmniForceControl(robot, kp=[1.0, 2.0])
