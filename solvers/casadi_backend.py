@@ -70,6 +70,13 @@ PLUGIN_PROFILES: dict[str, dict[str, dict]] = {
 }
 """Options per plugin and profile, passed to ``casadi.conic`` (with ``error_on_fail=True``)."""
 
+#: Options of one more cold attempt after a failed solve (per plugin). qpOASES' default
+#: initial guess failed every tick ("Division by zero" in its TQ factorisation) on a cascade
+#: level whose Hessian covers only some variables below frozen rows (the base reference of
+#: ``wbc study petric``); with every bound initially inactive it solves them. Not the first
+#: attempt: that guess fails on vertex LPs the default one solves.
+RETRY_OPTIONS: dict[str, dict] = {"qpoases": {"initialStatusBounds": "inactive"}}
+
 _INPUTS = ("h", "g", "a", "lba", "uba", "lbx", "ubx", "x0", "lam_x0", "lam_a0")
 _OUTPUTS = ("x", "cost", "lam_a", "lam_x")
 _STATUS = {
@@ -134,25 +141,44 @@ class CasadiConicBackend(BackendBase):
 
     def _new_function(self) -> None:
         """A new conic function: a solver with no memory of earlier solves."""
+        self._function = self._conic(self.options)
+
+    def _conic(self, options: dict):
         with silenced():
-            self._function = self._casadi.conic(
-                "wbc_qp", self.plugin, self._structure, {**self.options, "error_on_fail": True}
-            )
+            return self._casadi.conic("wbc_qp", self.plugin, self._structure,
+                                      {**options, "error_on_fail": True})
 
     def _bind(self) -> None:
         """A new buffer bound to the numpy arrays (for qpOASES not a cold start: its hot-start
         state lives in the function, see :meth:`_restart`)."""
-        function = self._function
+        self._buffer, self._evaluate = self._bound(self._function)
+        self._fresh = True
+
+    def _bound(self, function):
+        """``(buffer, evaluate)`` of ``function`` on the numpy arrays, started cold."""
         for name in ("x0", "lam_x0", "lam_a0"):
             self._inputs[name][...] = 0.0
         with silenced():
-            self._buffer, self._evaluate = function.buffer()
-        self._fresh = True
+            buffer, evaluate = function.buffer()
         for name in _INPUTS:
             view = self._inputs[name].reshape(-1, order="F")
-            self._buffer.set_arg(function.index_in(name), memoryview(view))
+            buffer.set_arg(function.index_in(name), memoryview(view))
         for name in _OUTPUTS:
-            self._buffer.set_res(function.index_out(name), memoryview(self._outputs[name]))
+            buffer.set_res(function.index_out(name), memoryview(self._outputs[name]))
+        return buffer, evaluate
+
+    def _retry_cold(self) -> bool:
+        """One more cold attempt with the plugin's :data:`RETRY_OPTIONS` (a new function each
+        time: qpOASES keeps its hot-start state there); whether it solved. Failed ticks only."""
+        options = RETRY_OPTIONS.get(self.plugin)
+        if options is None:
+            return False
+        buffer, evaluate = self._bound(self._conic({**self.options, **options}))
+        try:
+            evaluate()
+        except RuntimeError:
+            return False
+        return True
 
     def _update(self, H, g, A, lA, uA, lb, ub) -> None:
         arrays, m = self._inputs, self.m
@@ -184,10 +210,11 @@ class CasadiConicBackend(BackendBase):
             self._evaluate_once()
         except RuntimeError:  # error_on_fail: the plugin did not report success
             stats = self._buffer.stats()
-            status = _failure_status(stats)
-            message = f"{self.name}: {stats.get('return_status', status.value)}"
             self._restart()
-            return failure(n, m, status, message, stats.get("iter_count", -1))
+            if not self._retry_cold():
+                status = _failure_status(stats)
+                message = f"{self.name}: {stats.get('return_status', status.value)}"
+                return failure(n, m, status, message, stats.get("iter_count", -1))
         inputs["x0"][...] = outputs["x"]
         inputs["lam_x0"][...] = outputs["lam_x"]
         inputs["lam_a0"][...] = outputs["lam_a"]
