@@ -1,0 +1,39 @@
+"""``wbc reproduce --quick`` into a temporary folder: every step runs, the report and the
+studies' JSON exist and parse, every claim has a boolean ``holds``. No timing is asserted."""
+
+from __future__ import annotations
+
+import json
+
+from wbc.experiments import reproduce
+
+
+def test_reproduce_quick_writes_the_report(tmp_path):
+    code = reproduce.main(["--quick", "--out", str(tmp_path)])
+    report = (tmp_path / "REPORT.md").read_text()
+    logs = {p.name: p.read_text()[-2000:] for p in (tmp_path / "logs").iterdir()}
+    assert code == 0, f"a step failed:\n{report[:3000]}\n{logs}"
+    for name in reproduce.PAPERS:
+        data = json.loads((tmp_path / name / f"{name}.json").read_text())
+        assert data["claims"], f"study {name} has no claims"
+        for claim in data["claims"]:
+            assert {"id", "statement", "paper", "ours", "holds"} <= set(claim)
+            assert isinstance(claim["holds"], bool), (name, claim["id"])
+        assert f"`wbc study {name}`" in report
+    for figure in (tmp_path / "xing").glob("*.png"):
+        assert figure.stat().st_size > 0
+    assert json.loads((tmp_path / "bench" / "solver_timing.json").read_text())
+    assert json.loads((tmp_path / "vs_pink" / "vs_pink.json").read_text())["backends"]
+    assert "## Summary" in report and "## Peers" in report and "## Solver timing" in report
+
+
+def test_a_failing_step_does_not_lose_the_others(tmp_path, monkeypatch):
+    """One study that raises is reported as failed with its reason; the others still run."""
+    steps = reproduce.plan(tmp_path, quick=True)[:2]
+    steps[0].module = "wbc.experiments.no_such_study"
+    monkeypatch.setattr(reproduce, "plan", lambda out, quick: steps)
+    assert reproduce.main(["--quick", "--out", str(tmp_path)]) == 1
+    assert steps[0].status == "failed" and "no_such_study" in steps[0].reason
+    assert steps[1].status in ("ok", "failed")  # it ran
+    report = (tmp_path / "REPORT.md").read_text()
+    assert "Failed steps" in report and "no_such_study" in report
