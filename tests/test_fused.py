@@ -202,6 +202,26 @@ def test_a_fused_cascade_equals_the_ordinary_one(cascade_workspaces, active, dep
     assert fused.solve().levels[1].frozen_band == FROZEN_BAND
 
 
+def test_x_above_at_the_start_of_the_parameter_vector():
+    """A stack whose only parameter is Stack.x_above() (offset 0 in ``p``): level 1 pulls
+    ``x − x_above`` towards ``t`` under level 0's frozen rows ``[e0; (0, 1, 2)]``, so that
+    ``x = x₀* + d (d·t)`` with ``d`` their null direction."""
+    stack = wbc.Stack(3, damping={0: 0.1})
+    x = stack.variables.symbol
+    rows = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 2.0]])
+    t = np.array([0.3, 1.0, -0.5])
+    stack.add(wbc.Cost(rows @ x, target=np.array([0.5, 1.0]), name="first"), priority=0)
+    stack.add(wbc.Cost(x - stack.x_above(), target=t, name="pull"), priority=1)
+    compiled = stack.compile()
+    assert compiled.x_above_offset == 0
+    expected = wbc.Workspace(compiled, "daqp", "tight").solve()
+    solution = FusedWorkspace(compiled, "tight", compile=False).solve()
+    assert solution.ok and expected.ok
+    np.testing.assert_allclose(solution.x, expected.x, atol=1e-9)
+    d = np.array([0.0, 2.0, -1.0]) / np.sqrt(5.0)
+    np.testing.assert_allclose(solution.x, solution.levels[0].x + d * (d @ t), atol=1e-9)
+
+
 def test_a_lower_level_that_fails_falls_back_to_the_ordinary_partial_solution():
     """A level-local constraint at level 1 contradicts level 0's optimum: the generated daqp
     fails there, and the tick is the ordinary path's: infeasible, partial (level 0's x), with
