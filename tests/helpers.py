@@ -1,4 +1,5 @@
-"""Shared test helpers: random instances with controlled spectra, and KKT residuals."""
+"""Shared test helpers: random instances with controlled spectra, KKT residuals, and a
+controller commanding a constant vector (for wbc.sim)."""
 
 from __future__ import annotations
 
@@ -47,3 +48,15 @@ def assert_kkt(ws: wbc.Workspace, tol: float = 1e-6) -> None:
         res = kkt_residuals(qp, result)
         for what, value in res.items():
             assert value <= tol * scale, f"{label}: KKT {what} residual {value:.2e}"
+
+
+class Constant:
+    """A ``wbc.sim`` controller commanding the same vector every tick."""
+
+    last_solution = None
+
+    def __init__(self, command):
+        self.command = np.asarray(command, dtype=float)
+
+    def step(self, q, v=None, **references):
+        return self.command

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import Constant
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -14,18 +15,6 @@ from wbc.robots.omni_dynamics import YAW_INERTIA, OmniDynamics, coulomb_forces
 from wbc.sim import Simulation
 
 DT = 0.01
-
-
-class Constant:
-    """Commands the same wheel torques every tick."""
-
-    last_solution = None
-
-    def __init__(self, command):
-        self.command = np.asarray(command, dtype=float)
-
-    def step(self, q, v=None, **references):
-        return self.command
 
 
 @pytest.fixture(scope="module")

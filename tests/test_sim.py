@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import Constant
 
 import wbc
 import wbc.robots
@@ -33,18 +34,6 @@ def acceleration_controller(robot, kp=20.0, kd=9.0):
     wanted = kp * (target[:3, 3] - pose[:3, 3]) - kd * (J[:3, :] @ v)
     stack.add(wbc.Cost(J[:3, :] @ stack.variables["a"] + drift[:3], wanted, name="ee"))
     return wbc.Controller(robot, stack, dt=DT)
-
-
-class Constant:
-    """A controller commanding the same vector every tick."""
-
-    last_solution = None
-
-    def __init__(self, command):
-        self.command = np.asarray(command, dtype=float)
-
-    def step(self, q, v=None, **references):
-        return self.command
 
 
 @pytest.fixture(scope="module")
