@@ -35,12 +35,10 @@ Per scenario and method the runs hold ``"t"`` [s], ``"base_velocity"`` (N, 3) [m
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 
-import wbc
 import wbc.robots as robots
 from wbc.robots.omni_control import OmniForceControl, OmniPositionControl
 from wbc.robots.omni_dynamics import OmniDynamics
@@ -49,7 +47,7 @@ from wbc.solvers import available_backends
 from wbc.solvers import reference as ref
 from wbc.tasks import TorqueDistribution
 
-from .study import Claim, StudyResult, save_figure, study_main, timing_summary
+from .study import Claim, StudyResult, replay_timing, save_figure, study_main
 
 __all__ = ["METHODS", "PARAMETERS", "SCENARIOS", "main", "run", "simulate"]
 
@@ -218,26 +216,14 @@ def timing(robot, states: list, backends, budget_s: float) -> tuple[dict, list[s
     """Force-control tick (eq. 6 + the proportional distribution's QP) per backend, replayed on
     ``states`` (``(q, v, references)`` of the daqp runs), at most ``budget_s`` per backend;
     ``"qp_median_s"``: the distribution's share (assembly + QP solve)."""
-    out, failed = {}, []
-    for backend in backends:
-        try:
-            controller = OmniForceControl(robot, mu=PARAMETERS["mu"],
-                                          distribution=TorqueDistribution(
-                                              robot.base.jacobian, "proportional",
-                                              PARAMETERS["mu"], backend=backend))
-            ticks, qp, started = [], [], time.perf_counter()
-            for q, v, refs in states:
-                t0 = time.perf_counter()
-                controller.step(q, v, **refs)
-                ticks.append(time.perf_counter() - t0)
-                qp.append(controller.last_solution.timings.total)
-                if time.perf_counter() - started > budget_s:
-                    break
-        except wbc.WbcError as err:
-            failed.append(f"timing on {backend}: {err}")
-            continue
-        out[backend] = {**timing_summary(ticks), "qp_median_s": float(np.median(qp))}
-    return out, failed
+    def controller(backend):
+        distribution = TorqueDistribution(robot.base.jacobian, "proportional", PARAMETERS["mu"],
+                                          backend=backend)
+        return OmniForceControl(robot, mu=PARAMETERS["mu"], distribution=distribution)
+
+    return replay_timing(backends, controller, states,
+                         lambda control, state: control.step(state[0], state[1], **state[2]),
+                         budget_s, ("qp_median_s", lambda c: c.last_solution.timings.total))
 
 
 def _position_claims(numbers: dict, method: str, suffix: str, reading: str) -> list[Claim]:

@@ -39,7 +39,7 @@ from wbc.solvers.reference import task_sharing_factor
 from wbc.tasks import ArmCompensation, DexterousPosture, RpyPoseTask, share_task, sharing_factor
 from wbc.tasks.rpy_pose import pose_error, rpy_jacobian
 
-from .study import Claim, StudyResult, save_figure, study_main, timing_summary
+from .study import Claim, StudyResult, replay_timing, save_figure, study_main
 
 __all__ = ["PARAMETERS", "POSES", "SorourController", "main", "run"]
 
@@ -299,23 +299,9 @@ def timing(robot, states: list, backends, budget_s: float) -> tuple[dict, list[s
     """Full tick (eq. 9 stack + ICR QP + eq. 14 QP) of the compensated controller per backend,
     replayed over ``states`` (``(q, target)`` pairs of the daqp run), at most ``budget_s`` of
     wall time per backend. Returns the timing table and the backends that failed."""
-    out, failed = {}, []
-    for backend in backends:
-        try:
-            controller = SorourController(robot, "compensated", backend)
-            ticks, icr, started = [], [], time.perf_counter()
-            for q, target in states:
-                t0 = time.perf_counter()
-                controller.step(q, ee=target)
-                ticks.append(time.perf_counter() - t0)
-                icr.append(controller.tick_parts["icr_qp"])
-                if time.perf_counter() - started > budget_s:
-                    break
-        except wbc.WbcError as err:
-            failed.append(f"timing on {backend}: {err}")
-            continue
-        out[backend] = {**timing_summary(ticks), "icr_qp_median_s": float(np.median(icr))}
-    return out, failed
+    return replay_timing(backends, lambda backend: SorourController(robot, "compensated", backend),
+                         states, lambda control, state: control.step(state[0], ee=state[1]),
+                         budget_s, ("icr_qp_median_s", lambda c: c.tick_parts["icr_qp"]))
 
 
 def figures(runs: dict, out_dir: Path) -> list[str]:

@@ -164,6 +164,48 @@ def timing_summary(samples_s: Sequence[float]) -> dict:
             "tick_p95_s": float(np.percentile(samples, 95)), "ticks": int(samples.size)}
 
 
+def replay_timing(backends: Sequence[str], make_controller: Callable, states: Sequence,
+                  tick: Callable, budget_s: float,
+                  part: tuple[str, Callable] | None = None) -> tuple[dict, list[str]]:
+    """Wall time of a study's control tick per backend, replayed over recorded states.
+
+    Args:
+        backends: backend names.
+        make_controller: ``backend -> controller``.
+        states: the inputs replayed, one per tick (e.g. states of the daqp run).
+        tick: ``(controller, state) -> None``, one control tick (the part timed).
+        budget_s: at most this wall time per backend [s] (the replay stops early).
+        part: ``(key, controller -> seconds)``: the median of a share of each tick (e.g. its
+            QP), added under ``key``.
+
+    Returns:
+        ``(timing, failed)``: ``backend ->`` :func:`timing_summary` (+ the part), and one line
+        ``"timing on B: error"`` per backend whose controller raised a :class:`wbc.WbcError`.
+    """
+    import wbc
+
+    out, failed = {}, []
+    for backend in backends:
+        ticks, shares, started = [], [], time.perf_counter()
+        try:
+            controller = make_controller(backend)
+            for state in states:
+                t0 = time.perf_counter()
+                tick(controller, state)
+                ticks.append(time.perf_counter() - t0)
+                if part is not None:
+                    shares.append(part[1](controller))
+                if time.perf_counter() - started > budget_s:
+                    break
+        except wbc.WbcError as err:
+            failed.append(f"timing on {backend}: {err}")
+            continue
+        out[backend] = timing_summary(ticks)
+        if part is not None:
+            out[backend][part[0]] = float(np.median(shares))
+    return out, failed
+
+
 def save_figure(fig, path: Path) -> str:
     """Save a matplotlib figure as PNG after checking that every axis has a label (units are
     the caller's part of the label); closes it and returns the file name."""
