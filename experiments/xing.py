@@ -286,9 +286,9 @@ class CommandedVelocityOdometry(Actuation):
     *measured* velocity, as the planner integrates its own state — the true base velocity is
     ``(1 + scale + noise·N(0, 1)) ⊙ v_cmd`` (errors proportional to the commanded speed, as
     wheel slip and radius errors are: a base commanded to stay still does not move) and the
-    measured one is ``v_cmd``. (``wbc.sim.actuation.OdometryError`` scales the velocity the
-    simulator derives from the *true* velocity, so under acceleration commands its scale
-    compounds tick after tick; hence this model.)
+    measured one is ``v_cmd``. (``wbc.sim.actuation.OdometryError`` has the same scale error
+    but *additive* noise, which moves a base commanded to stay still — and whether AMP keeps
+    the base still is what the study measures; hence this model.)
 
     Args:
         scale: relative scale errors of ``(v_x, v_y, ω)`` [-].
