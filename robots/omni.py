@@ -27,6 +27,7 @@ The paper's masses and the wheels' load:
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 import pinocchio as pin
@@ -183,16 +184,23 @@ def normal_forces(wheel_xy, com_xy, mass: float, g: float = GRAVITY) -> np.ndarr
     if not (np.isfinite(g) and g > 0):
         raise InvalidValueError(f"g must be a positive number [m/s²], got {g!r}")
     A = np.vstack([np.ones(len(wheel_xy)), wheel_xy.T])
-    if np.linalg.matrix_rank(A) < 3:
+    # A has full row rank iff the contacts are not collinear; then A⁺ = Aᵀ (A Aᵀ)⁻¹, a 3 × 3
+    # solve (a tenth of the cost of an SVD-based rank test and pinv, this runs every tick)
+    gram = A @ A.T
+    if np.linalg.det(gram) <= 1e-12 * np.trace(gram) ** 3:
         raise InvalidValueError("wheel_xy: the contact points lie on one line, the platform is "
                                 "not supported")
     weight = mass * g
-    forces = np.linalg.pinv(A) @ (weight * np.array([1.0, com[0], com[1]]))
+    forces = A.T @ np.linalg.solve(gram, weight * np.array([1.0, com[0], com[1]]))
     if forces.min() < -1e-9 * weight:
         raise InvalidValueError(
             f"com_xy = {com}: the minimum-norm normal forces {forces.round(3)} N include a "
             "negative one — a wheel would lift (the centre of mass is too far out)")
     return np.maximum(forces, 0.0)
+
+
+#: pinocchio data of each robot's arm model, made once (system_com runs every tick)
+_ARM_DATA: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def system_com(robot, q, frame: str = "world") -> tuple[float, np.ndarray]:
@@ -215,12 +223,15 @@ def system_com(robot, q, frame: str = "world") -> tuple[float, np.ndarray]:
         raise InvalidValueError(f"frame must be 'world' or 'base', got {frame!r}")
     q = as_vector(q, robot.nq, "q")
     arm = robot.arm.model
-    data = arm.createData()
-    pin.forwardKinematics(arm, data, q[3:])
-    # every body of the arm, the root link (on the universe joint) included
-    arm_moment = sum((inertia.mass * data.oMi[i].act(inertia.lever)
-                      for i, inertia in enumerate(arm.inertias)), np.zeros(3))
-    arm_com = robot.mount.act(arm_moment / sum(inertia.mass for inertia in arm.inertias))
+    data = _ARM_DATA.get(robot)
+    if data is None:
+        data = _ARM_DATA[robot] = arm.createData()
+    # pinocchio's centre of mass leaves out the root link (the universe joint's inertia, fixed
+    # in the arm's frame); every body of the arm counts here
+    moving = pin.centerOfMass(arm, data, q[3:])
+    root = arm.inertias[0]
+    arm_mass = data.mass[0] + root.mass
+    arm_com = robot.mount.act((data.mass[0] * moving + root.mass * root.lever) / arm_mass)
     mass = PLATFORM_MASS + ARM_MASS
     com = (PLATFORM_MASS * np.asarray(robot.base.com, dtype=float) + ARM_MASS * arm_com) / mass
     if frame == "world":
