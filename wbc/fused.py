@@ -234,7 +234,7 @@ def _cascade(compiled: CompiledStack, p: ca.MX, solve) -> tuple[ca.MX, list[dict
             slack = z[n:]
             soft.append((AT.T[own, :n], lA[own] + slack, uA[own] + slack))
         levels.append({"qp": qp, "x": x, "z": z, "cost": cost, "lam_a": lam_a,
-                       "lam_x": lam_x, "band": band if block.n_frozen_cost else 0.0})
+                       "lam_x": lam_x})
     return x, levels
 
 
