@@ -7,12 +7,19 @@ from __future__ import annotations
 
 import tracemalloc
 
+import casadi as ca
 import numpy as np
 import pytest
 from helpers import assert_kkt, kkt_residuals
 
 import wbc
-from wbc.fused import FROZEN_BAND, FusedWorkspace, fused_function, why_not_fused
+from wbc.fused import (
+    FROZEN_BAND,
+    MAX_SKIPPED_TICKS,
+    FusedWorkspace,
+    fused_function,
+    why_not_fused,
+)
 from wbc.tasks import (
     Bounds,
     ConfigurationLimit,
@@ -134,11 +141,11 @@ def test_what_is_not_fused_says_why():
 
 # ----------------------------------------------------------------------------- cascades
 def cascade_stack() -> wbc.Stack:
-    """Three levels and the min-norm level (level 2 is undamped): a task and a soft row at
+    """Three damped levels and the min-norm level: a task and a soft row at
     level 0, a second task at level 1 (which may repeat a row of level 0: dependent frozen
     rows), at level 2 a full-rank pull towards ``x_above + target`` (Stack.x_above()), after
     which the frozen rows leave the min-norm level a single point; a hard row and bounds."""
-    stack = wbc.Stack(N, damping={0: 0.05, 1: 0.1})
+    stack = wbc.Stack(N, damping={0: 0.05, 1: 0.1, 2: 0.02}, min_norm=True)
     x = stack.variables.symbol
     target = stack.parameter("pull.target", N, np.zeros(N))
     stack.add(LinearTask(np.ones((3, N)), np.ones(3), name="task"), priority=0)
@@ -205,8 +212,9 @@ def test_a_fused_cascade_equals_the_ordinary_one(cascade_workspaces, active, dep
 def test_x_above_at_the_start_of_the_parameter_vector():
     """A stack whose only parameter is Stack.x_above() (offset 0 in ``p``): level 1 pulls
     ``x − x_above`` towards ``t`` under level 0's frozen rows ``[e0; (0, 1, 2)]``, so that
-    ``x = x₀* + d (d·t)`` with ``d`` their null direction."""
-    stack = wbc.Stack(3, damping={0: 0.1})
+    ``x = x₀* + d (d·t) / (1 + ρ²)`` with ``d`` their null direction (``x₀*`` lies in their
+    row space)."""
+    stack = wbc.Stack(3, damping=0.1)
     x = stack.variables.symbol
     rows = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 2.0]])
     t = np.array([0.3, 1.0, -0.5])
@@ -219,7 +227,8 @@ def test_x_above_at_the_start_of_the_parameter_vector():
     assert solution.ok and expected.ok
     np.testing.assert_allclose(solution.x, expected.x, atol=1e-9)
     d = np.array([0.0, 2.0, -1.0]) / np.sqrt(5.0)
-    np.testing.assert_allclose(solution.x, solution.levels[0].x + d * (d @ t), atol=1e-9)
+    np.testing.assert_allclose(solution.x, solution.levels[0].x + d * (d @ t) / 1.01,
+                               atol=1e-9)
 
 
 def test_a_lower_level_that_fails_falls_back_to_the_ordinary_partial_solution():
@@ -243,16 +252,57 @@ def test_a_lower_level_that_fails_falls_back_to_the_ordinary_partial_solution():
         np.testing.assert_allclose(solution.x[0], 0.5 / 1.01)
 
 
-def test_an_undamped_level_takes_the_ordinary_path():
-    """The generated daqp has no proximal iterations: a level with a singular Hessian (ρ = 0,
-    rank-deficient task) fails its setup and the tick is solved by the ordinary path."""
+def test_repeated_failures_are_retried_ever_more_rarely():
+    """An undamped level with a rank-deficient task has a singular Hessian, which the generated
+    daqp refuses: after k consecutive failed calls the next 2^(k−1) − 1 ticks take the ordinary
+    path directly (at most MAX_SKIPPED_TICKS); every answer is the ordinary path's; once the
+    Hessian is regular again the next try succeeds and the ticks are fused again."""
     stack = wbc.Stack(N)
-    stack.add(LinearTask(np.eye(N)[:2], [0.5, 0.2], name="first"), priority=0)
+    stack.add(LinearTask(np.diag([1.0, 1.0] + [0.0] * (N - 2)), np.ones(N), name="first"))
     compiled = stack.compile()
-    ws = FusedWorkspace(compiled, "tight", compile=False)
-    solution = ws.solve()
-    assert solution.ok and ws.fallback_solves == 1
-    np.testing.assert_allclose(solution.x, np.r_[0.5, 0.2, np.zeros(N - 2)], atol=1e-9)
+    fused, ordinary = (FusedWorkspace(compiled, "tight", compile=False),
+                       wbc.Workspace(compiled, "daqp", "tight"))
+    for _ in range(20):
+        solution = fused.solve()
+        assert solution.ok
+        np.testing.assert_allclose(solution.x, ordinary.solve().x, atol=1e-9)
+    assert (fused.fallback_solves, fused.skipped_solves) == (5, 15)  # tried at 0, 1, 3, 7, 15
+    for ws in (fused, ordinary):  # a regular Hessian from now on
+        ws.set(**{"first.A": np.eye(N)})
+    for _ in range(20):  # skipped up to tick 30, then tried and fused
+        np.testing.assert_allclose(fused.solve().x, ordinary.solve().x, atol=1e-9)
+    assert (fused.fallback_solves, fused.skipped_solves) == (5, 26)  # 15 + ticks 20-30
+    assert fused.solve() is fused.solve()  # the fused solution object: fused ticks
+    stuck = FusedWorkspace(compiled, "tight", compile=False)
+    for _ in range(300):
+        stuck.solve()
+    assert stuck.fallback_solves == 10  # 0, 1, 3, 7, 15, 31, 63, then every 64th: 127, 191, 255
+    assert stuck.fallback_solves + stuck.skipped_solves == 300
+    assert MAX_SKIPPED_TICKS == 63
+
+
+def test_pinned_variables_are_fused():
+    """A per-tick mobility with zeros pins variables (bounds 0 <= x_i <= 0) and zeroes their
+    metric: the fused QP puts 1 on their diagonal of H (constant on the feasible set), so the
+    generated daqp solves it, and the answer is the ordinary path's."""
+    stack = wbc.Stack(N, damping=0.1)
+    psi = stack.parameter("psi", 1, 0.0)
+    stack.set_mobility(ca.vertcat(ca.repmat(1 - psi, 3, 1), ca.repmat(psi, N - 3, 1)))
+    stack.add(LinearTask(np.ones((3, N)), np.ones(3), name="task"))
+    stack.add(LinearTask(np.eye(N), np.zeros(N), name="posture"), priority=1)
+    compiled = stack.compile()
+    assert why_not_fused(compiled, {}) is None
+    fused, ordinary = FusedWorkspace(compiled, "tight"), wbc.Workspace(compiled, "daqp", "tight")
+    rng = np.random.default_rng(3)
+    for psi in (0.0, 0.4, 1.0):
+        data = {"psi": psi, "task.A": rng.standard_normal((3, N)),
+                "task.b": rng.standard_normal(3)}
+        x = fused.set(**data).solve().x.copy()
+        np.testing.assert_allclose(x, ordinary.set(**data).solve().x, atol=1e-8)
+        pinned = slice(3, N) if psi == 0.0 else slice(0, 3) if psi == 1.0 else slice(0, 0)
+        assert np.all(x[pinned] == 0.0)
+        assert_kkt(fused, tol=1e-8)
+    assert fused.fallback_solves == 0
 
 
 # ----------------------------------------------------------------------------- controller
