@@ -37,7 +37,9 @@ class LevelResult:
         label: e.g. ``"level 1 (tasks: ee, posture)"``.
         status: backend status.
         x: the decision vector after this QP (zeros if it failed).
-        frozen_rank: rank of the earlier levels' frozen cost rows it was solved under.
+        frozen_rank: rank of the earlier levels' frozen cost rows it was solved under
+            (``-1`` on the fused tick, which keeps every frozen row in a narrow band and
+            computes no rank, see :mod:`wbc.fused`).
         iterations: backend iterations (``-1`` if unknown; ``0`` for a level the levels
             above determine completely, which no backend is asked to solve).
         message: the backend's message on failure.
