@@ -24,6 +24,13 @@ def test_stack_cases_have_no_defect(backend):
     assert {"error", "success"} <= classes
 
 
+def test_stack_cases_have_no_defect_on_the_fused_cascade():
+    cases = list(fuzz.stack_cases("daqp", seed=1, structures=6, draws=1, fused=True))
+    assert {c["backend"] for c, *_ in cases} == {"daqp (fused)"}
+    assert [(c, d, m) for c, _, d, m in cases if d] == []
+    assert {"error", "success"} <= {outcome for _, outcome, _, _ in cases}
+
+
 def test_robot_cases_have_no_defect_on_the_fused_tick():
     cases = list(fuzz.robot_cases("daqp", seed=1, ticks=12))
     assert [d for *_, d, _ in cases if d] == []
