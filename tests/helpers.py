@@ -1,5 +1,5 @@
-"""Shared test helpers: random instances with controlled spectra, KKT residuals, and a
-controller commanding a constant vector (for wbc.sim)."""
+"""Shared test helpers: random instances with controlled spectra, KKT residuals, a controller
+commanding a constant vector (for wbc.sim), and the paper studies' output contract."""
 
 from __future__ import annotations
 
@@ -60,3 +60,14 @@ class Constant:
 
     def step(self, q, v=None, **references):
         return self.command
+
+
+def assert_study_contract(data: dict) -> None:
+    """The JSON of ``wbc study NAME`` keeps the contract of the paper issues: its top-level
+    keys, and every claim with exactly ``id, statement, paper, ours, holds, note`` and a
+    boolean ``holds``."""
+    assert {"claims", "runs", "timing", "machine", "parameters", "summary"} <= set(data)
+    assert data["claims"]
+    for claim in data["claims"]:
+        assert set(claim) == {"id", "statement", "paper", "ours", "holds", "note"}, claim
+        assert isinstance(claim["holds"], bool), claim["id"]

@@ -9,6 +9,7 @@ import matplotlib
 matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from helpers import assert_study_contract
 
 from wbc.experiments import omni  # noqa: E402
 
@@ -31,11 +32,8 @@ def study(tmp_path_factory):
 
 def test_quick_study_writes_the_contract(study):
     folder, data = study
-    assert {"claims", "runs", "timing", "machine", "parameters", "summary"} <= set(data)
+    assert_study_contract(data)
     assert {c["id"] for c in data["claims"]} == CLAIMS
-    for claim in data["claims"]:
-        assert {"id", "statement", "paper", "ours", "holds", "note"} == set(claim)
-        assert isinstance(claim["holds"], bool)
     assert set(data["runs"]) == set(omni.SCENARIOS)
     for methods in data["runs"].values():
         assert set(methods) == set(omni.METHODS)

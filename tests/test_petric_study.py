@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import assert_study_contract
 
 from wbc.experiments import petric
 from wbc.tasks import VelocityField
@@ -21,10 +22,7 @@ def study(tmp_path_factory):
 
 def test_contract(study):
     folder, data = study
-    assert {"claims", "runs", "timing", "machine", "parameters", "summary"} <= set(data)
-    for claim in data["claims"]:
-        assert {"id", "statement", "paper", "ours", "holds"} <= set(claim)
-        assert isinstance(claim["holds"], bool)
+    assert_study_contract(data)
     for name in petric.SCENARIOS:
         methods = data["runs"][name]
         assert {"decoupled", "whole_body"} <= set(methods)

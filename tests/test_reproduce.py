@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 
+from helpers import assert_study_contract
+
 from wbc.experiments import reproduce
 
 
@@ -14,11 +16,7 @@ def test_reproduce_quick_writes_the_report(tmp_path):
     logs = {p.name: p.read_text()[-2000:] for p in (tmp_path / "logs").iterdir()}
     assert code == 0, f"a step failed:\n{report[:3000]}\n{logs}"
     for name in reproduce.PAPERS:
-        data = json.loads((tmp_path / name / f"{name}.json").read_text())
-        assert data["claims"], f"study {name} has no claims"
-        for claim in data["claims"]:
-            assert {"id", "statement", "paper", "ours", "holds"} <= set(claim)
-            assert isinstance(claim["holds"], bool), (name, claim["id"])
+        assert_study_contract(json.loads((tmp_path / name / f"{name}.json").read_text()))
         assert f"`wbc study {name}`" in report
     for figure in (tmp_path / "xing").glob("*.png"):
         assert figure.stat().st_size > 0

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from helpers import assert_study_contract
 
 from wbc.experiments import sorour
 from wbc.experiments.cli import main as cli_main
@@ -20,10 +21,7 @@ def study(tmp_path_factory):
 
 def test_contract(study):
     folder, data = study
-    assert {"claims", "runs", "timing", "machine", "parameters", "summary"} <= set(data)
-    for claim in data["claims"]:
-        assert {"id", "statement", "paper", "ours", "holds"} <= set(claim)
-        assert isinstance(claim["holds"], bool)
+    assert_study_contract(data)
     runs = data["runs"]["table_ii"]
     assert set(runs) == set(sorour.VARIANTS)
     for series in runs.values():
