@@ -48,9 +48,8 @@ import numpy as np
 
 import wbc
 import wbc.robots
-from wbc.errors import BackendUnavailableError
 from wbc.sim import Simulation, actuation
-from wbc.solvers import available_backends, make_backend
+from wbc.solvers import available_backends
 from wbc.tasks import (
     ConfigurationLimit,
     FrameTask,
@@ -58,6 +57,8 @@ from wbc.tasks import (
     PostureTask,
     VelocityLimit,
 )
+
+from .arguments import constructible_backends
 
 DT = 0.01  # control period [s]
 TOL = 1e-9  # allowed excursion out of a limit (absolute)
@@ -234,12 +235,7 @@ def main(argv=None) -> int:
         parser.error("--runs and --ticks must be >= 1")
     if args.seconds is not None and not args.seconds > 0:
         parser.error("--seconds must be > 0")
-    backends = [b for b in args.backends.split(",") if b]
-    for name in backends:
-        try:
-            make_backend(name)
-        except BackendUnavailableError as err:
-            parser.error(str(err))
+    backends = constructible_backends(parser, args.backends)
     levels = [lv for lv in args.levels.split(",") if lv]
     for level in levels:
         if level not in LEVELS:

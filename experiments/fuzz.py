@@ -44,9 +44,8 @@ import numpy as np
 
 import wbc
 import wbc.robots
-from wbc.errors import BackendUnavailableError
 from wbc.fused import FusedWorkspace
-from wbc.solvers import available_backends, make_backend
+from wbc.solvers import available_backends
 from wbc.solvers.base import silenced
 from wbc.tasks import (
     Bounds,
@@ -57,6 +56,8 @@ from wbc.tasks import (
     PostureTask,
     VelocityLimit,
 )
+
+from .arguments import constructible_backends
 
 HANG_S = 1.0  # a tick longer than this is a hang [s]
 BOUND_TOL = 1e-9  # allowed excursion out of a hard variable bound, relative to max(1, |b|)
@@ -349,12 +350,7 @@ def main(argv=None) -> int:
         parser.error("--cases must be >= 1")
     if args.seconds is not None and not args.seconds > 0:
         parser.error("--seconds must be > 0")
-    backends = [b for b in args.backends.split(",") if b]
-    for name in backends:
-        try:
-            make_backend(name)
-        except BackendUnavailableError as err:
-            parser.error(str(err))
+    backends = constructible_backends(parser, args.backends)
     result = campaign(args.cases, backends, args.seed, args.seconds)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "fuzz.json").write_text(json.dumps(result, indent=1, default=_plain))

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 import wbc
+from wbc.experiments.arguments import installed_backends
 from wbc.experiments.machine import describe_machine
 from wbc.experiments.progress import report_progress
 from wbc.fused import FusedWorkspace, compiler_available
@@ -163,10 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.ticks < 1:
         parser.error("--ticks must be >= 1")
-    missing = [b for b in args.backends or () if b not in available_backends()]
-    if missing:
-        parser.error(f"backend(s) {missing} not available; available: {available_backends()}")
-    report = run(args.ticks, backends=args.backends, jit=not args.no_jit,
+    backends = None if args.backends is None else installed_backends(parser, args.backends)
+    report = run(args.ticks, backends=backends, jit=not args.no_jit,
                  progress=report_progress)
     print(table(report))
     if args.out:

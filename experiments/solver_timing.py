@@ -40,6 +40,7 @@ import pinocchio as pin
 
 import wbc
 import wbc.robots
+from wbc.experiments.arguments import installed_backends
 from wbc.experiments.machine import describe_machine
 from wbc.experiments.progress import report_progress
 from wbc.experiments.study import save_figure
@@ -356,10 +357,7 @@ def main(argv: list[str] | None = None) -> int:
     bad = sorted(set(args.stacks) - set(STACKS))
     if bad:
         parser.error(f"unknown stack(s) {bad}; stacks are {list(STACKS)}")
-    backends = args.backends or available_backends()
-    missing = sorted(set(backends) - set(available_backends()))
-    if missing:
-        parser.error(f"backend(s) {missing} not available; available: {available_backends()}")
+    backends = installed_backends(parser, args.backends or available_backends())
     if args.ticks < 1 or args.warmup < 0 or args.scaling_ticks < 1:
         parser.error("--ticks and --scaling-ticks must be >= 1, --warmup >= 0")
     if any(n < 2 for n in args.scaling_joints):

@@ -49,6 +49,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .arguments import installed_backends
+
 BACKENDS = ("daqp", "quadprog", "proxqp", "osqp", "clarabel")
 DT = 0.01  # [s]
 FRAME_GAIN = 0.5
@@ -289,16 +291,9 @@ def main(argv: list[str] | None = None, rival: type | None = None) -> int:
     parser.add_argument("--no-jit", dest="jit", action="store_false",
                         help="evaluate wbc's compiled stack on CasADi's VM instead of JIT C")
     args = parser.parse_args(argv)
-    from wbc.solvers import available_backends
-
-    backends = [b for item in args.backends for b in item.split(",") if b]
     if args.ticks < 1:
         parser.error("--ticks must be >= 1")
-    if not backends:
-        parser.error("--backends needs at least one name")
-    unknown = [b for b in backends if b not in available_backends()]
-    if unknown:
-        parser.error(f"backend(s) {unknown} not available; available: {available_backends()}")
+    backends = installed_backends(parser, args.backends)
     try:
         importlib.import_module(rival.requirement)
         import qpsolvers
@@ -310,8 +305,10 @@ def main(argv: list[str] | None = None, rival: type | None = None) -> int:
     from wbc.experiments.machine import describe_machine
     from wbc.experiments.progress import report_progress
 
-    ours, theirs = set(available_backends()), set(qpsolvers.available_solvers)
-    skipped = [b for b in backends if b not in ours or b not in theirs]
+    # every name is an installed wbc backend (installed_backends); pink and mink reach their
+    # QP through qpsolvers, so a backend it lacks is skipped
+    theirs = set(qpsolvers.available_solvers)
+    skipped = [b for b in backends if b not in theirs]
     results, errors = {}, {}
     runs = [b for b in backends if b not in skipped]
     for done, backend in enumerate(runs, start=1):

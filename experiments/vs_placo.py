@@ -66,6 +66,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .arguments import installed_backends
 from .vs_mink import HAND, panda_urdf_without_meshes
 from .vs_pink import DT, POSE_TOL, POSTURE_COST, Q0, build_wbc, targets
 
@@ -287,16 +288,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("results/vs_placo"),
                         help="output folder for vs_placo.json")
     args = parser.parse_args(argv)
-    from wbc.solvers import available_backends
-
-    backends = [b for item in args.backends for b in item.split(",") if b]
     if args.ticks < 1:
         parser.error("--ticks must be >= 1")
-    if not backends:
-        parser.error("--backends needs at least one name")
-    unknown = [b for b in backends if b not in available_backends()]
-    if unknown:
-        parser.error(f"backend(s) {unknown} not available; available: {available_backends()}")
+    backends = installed_backends(parser, args.backends)
     try:
         import placo  # noqa: F401
     except ImportError as err:
