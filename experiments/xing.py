@@ -575,29 +575,40 @@ def _claims(runs: dict, timing: dict, bounds_loops: dict, equivalence: dict) -> 
     return claims
 
 
-def bounds_loops(n: int = 10_000, ticks: int = 300, seed: int = 0) -> dict:
-    """Share [%] of random single-joint closed loops whose bounds cross / whose limits are
-    violated, for both methods (the loops of tests/test_xing_bounds.py)."""
+def random_joint_loops(method: str, n: int = 10_000, ticks: int = 300, seed: int = 0,
+                       period: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
+    """``(crossed, violated)``, boolean (n,): which of ``n`` random single-joint closed loops
+    ever got crossed bounds from :func:`~wbc.tasks.joint_acceleration_bounds` (``method``), and
+    which ever left a position or velocity limit (> 1e-9). Each loop starts from a viable state
+    and applies, for ``ticks`` periods [s], an acceleration drawn inside the bounds (half the
+    ticks bang-bang), or the lower bound when they cross. The same ``seed`` gives the same
+    loops and draws for every method."""
     rng = np.random.default_rng(seed)
     q_min, q_max = rng.uniform(-3.0, -0.05, n), rng.uniform(0.05, 3.0, n)
     V, A = rng.uniform(0.2, 3.0, n), rng.uniform(0.5, 10.0, n)
-    q0, qd0 = rng.uniform(q_min, q_max), rng.uniform(-V, V)
-    viable = (q0 + np.maximum(qd0, 0) ** 2 / (2 * A) <= q_max) & (
-        q0 - np.minimum(qd0, 0) ** 2 / (2 * A) >= q_min)
-    q0, qd0 = np.where(viable, q0, 0.5 * (q_min + q_max)), np.where(viable, qd0, 0.0)
+    q, qd = rng.uniform(q_min, q_max), rng.uniform(-V, V)
+    viable = (q + np.maximum(qd, 0) ** 2 / (2 * A) <= q_max) & (
+        q - np.minimum(qd, 0) ** 2 / (2 * A) >= q_min)
+    q, qd = np.where(viable, q, 0.5 * (q_min + q_max)), np.where(viable, qd, 0.0)
     draws = rng.uniform(size=(ticks, 2, n))
+    crossed, violated = np.zeros(n, bool), np.zeros(n, bool)
+    for k in range(ticks):
+        lower, upper = joint_acceleration_bounds(q, qd, q_min, q_max, -V, V, -A, A, period,
+                                                 method)
+        crossed |= lower > upper
+        u = np.where(draws[k, 1] < 0.5, np.round(draws[k, 0]), draws[k, 0])
+        a = np.where(lower > upper, lower, lower + u * (upper - lower))
+        q, qd = q + qd * period + a * period * period / 2, qd + a * period
+        violated |= (q > q_max + 1e-9) | (q < q_min - 1e-9) | (np.abs(qd) > V + 1e-9)
+    return crossed, violated
+
+
+def bounds_loops(n: int = 10_000, ticks: int = 300, seed: int = 0) -> dict:
+    """Share [%] of :func:`random_joint_loops` whose bounds cross / whose limits are
+    violated, for both methods."""
     out = {}
     for method in ("xing", "viable"):
-        q, qd = q0.copy(), qd0.copy()
-        crossed, violated = np.zeros(n, bool), np.zeros(n, bool)
-        for k in range(ticks):
-            lower, upper = joint_acceleration_bounds(q, qd, q_min, q_max, -V, V, -A, A, 0.01,
-                                                     method)
-            crossed |= lower > upper
-            u = np.where(draws[k, 1] < 0.5, np.round(draws[k, 0]), draws[k, 0])
-            a = np.where(lower > upper, lower, lower + u * (upper - lower))
-            q, qd = q + qd * 0.01 + a * 5e-5, qd + a * 0.01
-            violated |= (q > q_max + 1e-9) | (q < q_min - 1e-9) | (np.abs(qd) > V + 1e-9)
+        crossed, violated = random_joint_loops(method, n, ticks, seed)
         out[f"{method}_crossed_pct"] = round(100 * float(crossed.mean()), 2)
         out[f"{method}_violated_pct"] = round(100 * float(violated.mean()), 2)
     return out

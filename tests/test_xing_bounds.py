@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 import wbc
 import wbc.robots as robots
 from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
+from wbc.experiments import xing
 from wbc.tasks import JointAccelerationLimit, joint_acceleration_bounds
 from wbc.tasks.joint_acceleration import _CASADI, _bounds
 
@@ -94,35 +95,14 @@ def test_viable_bounds_are_ordered_and_keep_the_next_state_viable(limits):
         assert _viable(q1, qd1, q_min - 1e-9, q_max + 1e-9, A)
 
 
-def _closed_loops(method: str, n: int = 10_000, ticks: int = 300, seed: int = 0):
-    """``(crossed, violated)`` boolean arrays over ``n`` random single-joint loops."""
-    rng = np.random.default_rng(seed)
-    q_min, q_max = rng.uniform(-3.0, -0.05, n), rng.uniform(0.05, 3.0, n)
-    V, A = rng.uniform(0.2, 3.0, n), rng.uniform(0.5, 10.0, n)
-    q, qd = rng.uniform(q_min, q_max), rng.uniform(-V, V)
-    viable = (q + np.maximum(qd, 0) ** 2 / (2 * A) <= q_max) & (
-        q - np.minimum(qd, 0) ** 2 / (2 * A) >= q_min)
-    q, qd = np.where(viable, q, 0.5 * (q_min + q_max)), np.where(viable, qd, 0.0)
-    crossed, violated = np.zeros(n, bool), np.zeros(n, bool)
-    for _ in range(ticks):
-        lower, upper = joint_acceleration_bounds(q, qd, q_min, q_max, -V, V, -A, A, T, method)
-        crossed |= lower > upper
-        u = rng.uniform(size=n)
-        u = np.where(rng.uniform(size=n) < 0.5, np.round(u), u)  # half bang-bang
-        a = np.where(lower > upper, lower, lower + u * (upper - lower))
-        q, qd = q + qd * T + a * T * T / 2, qd + a * T
-        violated |= (q > q_max + 1e-9) | (q < q_min - 1e-9) | (np.abs(qd) > V + 1e-9)
-    return crossed, violated
-
-
 def test_closed_loops_inside_the_bounds():
     """10⁴ random loops: "viable" never crosses nor violates. Xing's bounds as printed do
     both: the position term asks to stop at the limit within one period whatever the
     acceleration limit, and the braking points Q_low / Q_up switch to maximal deceleration
     only once the continuous braking distance is used up, one period too late."""
-    crossed, violated = _closed_loops("viable")
+    crossed, violated = xing.random_joint_loops("viable")
     assert crossed.sum() == 0 and violated.sum() == 0
-    crossed, violated = _closed_loops("xing")
+    crossed, violated = xing.random_joint_loops("xing")
     assert 0.1 < crossed.mean() < 0.5 and 0.3 < violated.mean() < 0.8
 
 
