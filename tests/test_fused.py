@@ -395,6 +395,44 @@ def test_fallbacks_after_a_failed_fused_tick(robot, controllers, policy):
         fused.fallback = "hold"
 
 
+def test_a_solved_tick_after_a_failed_one_resets_the_back_off_and_the_qps(robot, controllers):
+    """The controller makes the fused call itself: after a tick the ordinary path took, the next
+    solved call reports the fused QPs and ends the back-off (an isolated failure costs
+    nothing later)."""
+    fused = controllers[0]
+    fused.set_references(ee=robot.frame_pose(Q0, "ee"))
+    crossed = Q0.copy()
+    crossed[0] = robot.limits.q_upper[0] + 0.1  # crossed bounds: the fused call fails
+    ws = fused.workspace
+    for _ in range(3):
+        failed, skipped = ws.fallback_solves, ws.skipped_solves
+        fused.step(crossed)
+        assert ws.fallback_solves == failed + 1 and ws.skipped_solves == skipped
+        assert fused.last_solution.status is wbc.Status.INFEASIBLE
+        fused.step(Q0)  # solved by the fused call, not skipped
+        assert ws.skipped_solves == skipped and fused.last_solution.ok
+        assert fused.last_solution.levels[0].iterations == -1  # (the fused call's mark)
+        # the QPs reported are this tick's fused ones, not the failed tick's (crossed bounds)
+        (_, (*_, lb, ub), _), = ws.last_qps()
+        assert np.all(lb <= ub)
+
+
+class _CountingController(wbc.Controller):
+    """A subclass with its own step (the tick closure must not shadow it)."""
+
+    def step(self, q, v=None, **references):
+        self.calls = getattr(self, "calls", 0) + 1
+        return super().step(q, v, **references)
+
+
+def test_a_subclass_step_stays_in_charge(robot):
+    ctrl = _CountingController(robot, panda_stack(robot), dt=DT)
+    ctrl.set_references(posture=Q0, ee=robot.frame_pose(Q0, "ee"))
+    ctrl.step(Q0)
+    ctrl.step(Q0 + 0.01)
+    assert ctrl.calls == 2 and ctrl.fused and ctrl.last_solution.ok
+
+
 def test_bad_input_is_refused_before_any_write(controllers):
     fused = controllers[0]
     fused.step(Q0)

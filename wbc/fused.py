@@ -416,9 +416,26 @@ class FusedWorkspace(Workspace):
         cost = done[0]
         if cost == cost:  # not NaN: the solve succeeded
             self._timings.solve = t1 - t0
-            self._solved = self._no_qps
-            self._failures = 0
+            self.fused_tick_solved()
             return self._solution
+        return self.solve_after_failed_call()
+
+    def call_buffers(self) -> tuple:
+        """``(call, done, solution, timings)`` for a caller that makes the fused call itself
+        (:class:`~wbc.Controller`'s tick): the bare call, the one-entry view it writes the
+        cost into (set it to NaN before the call: still NaN after means a failed call), the
+        reused :class:`~wbc.Solution` and its timings. After a solved call, the caller reports
+        :meth:`fused_tick_solved`, after a failed one it takes :meth:`solve_after_failed_call`."""
+        return self._evaluate, self._done, self._solution, self._timings
+
+    def fused_tick_solved(self) -> None:
+        """Bookkeeping of a solved fused call (its results are in the solution's buffers)."""
+        self._solved = self._no_qps
+        self._failures = 0
+
+    def solve_after_failed_call(self) -> Solution:
+        """The tick on the ordinary path after a failed fused call, counted, with the back-off
+        of the module docstring."""
         self.fallback_solves += 1
         self._failures += 1
         self._skip = min(2 ** (self._failures - 1) - 1, MAX_SKIPPED_TICKS)
