@@ -34,7 +34,9 @@ tolerance only (the workspace clips ``x`` into the variable bounds, so they are 
 Output (``--out DIR``): ``DIR/audit.json`` with ``"runs"``, ``"ticks"``, ``"violations"``,
 ``"nans"``, ``"failed"``, ``"partial"``, ``"fallback_missing"``, the same per level and
 backend under ``"by_level"``, ``"by_backend"`` and ``"cells"`` (level × backend × robot), the
-worst excursions in ``"worst"`` and ``"parameters"``; ``DIR/audit.md`` as a table.
+worst excursions in ``"worst"`` and ``"parameters"``; ``DIR/audit.md`` as a table. Exit code:
+0 when no run has a violation, a NaN or a failed tick without fallback (:data:`FINDINGS`), 1
+otherwise (2: a usage error); failed and partial ticks with their fallback are not findings.
 """
 
 from __future__ import annotations
@@ -65,6 +67,8 @@ TOL = 1e-9  # allowed excursion out of a limit (absolute)
 EXACT = ("daqp", "quadprog", "qpoases")
 LEVELS = ("velocity", "acceleration")
 COUNTS = ("runs", "ticks", "violations", "nans", "failed", "partial", "fallback_missing")
+#: The counts that make ``wbc audit`` exit 1.
+FINDINGS = ("violations", "nans", "fallback_missing")
 
 
 def velocity_controller(robot, backend: str):
@@ -245,4 +249,4 @@ def main(argv=None) -> int:
     (args.out / "audit.json").write_text(json.dumps(result, indent=1))
     (args.out / "audit.md").write_text(markdown(result))
     print(markdown(result))
-    return 0
+    return 1 if any(result[key] for key in FINDINGS) else 0  # a CI gate

@@ -29,7 +29,8 @@ Case families (drawn in proportion, all seeded from ``--seed``):
 
 Outputs (``--out DIR``): ``DIR/fuzz.json`` with ``"cases"``, ``"outcomes"`` (counts per class
 and backend), ``"defects"`` (each with a reproducer: family, backend, seeds, injected defect,
-message) and ``"parameters"``; ``DIR/fuzz.md`` the same as a table.
+message) and ``"parameters"``; ``DIR/fuzz.md`` the same as a table. Exit code: 0 without
+defects, 1 with any (2: a usage error).
 """
 
 from __future__ import annotations
@@ -356,7 +357,7 @@ def main(argv=None) -> int:
     (args.out / "fuzz.json").write_text(json.dumps(result, indent=1, default=_plain))
     (args.out / "fuzz.md").write_text(markdown(result))
     print(markdown(result))
-    return 0
+    return 1 if result["defects"] else 0  # a CI gate: defects fail the command
 
 
 def _plain(value):

@@ -15,13 +15,16 @@ warm starts; the backends take turns at every state (interleaved, in a rotating 
 machine noise hits them alike. Per tick it records the wall time of ``Controller.step`` and its
 split into kinematics (model stage) / assembly / solve / the rest ("python": checks, fallback
 policy, bookkeeping), which path the controller took (``fused``: the whole tick one generated
-C function, :mod:`wbc.fused`, where daqp solves a single QP — its ``solve`` is that call;
-``jit`` or ``vm``), whether it succeeded (or only partly: a
-lower level failed and the command is the levels above it), and the largest difference of its
-command from the reference's. Controllers use ``kinematics="compiled"`` by default (poses and
-Jacobians inside the compiled functions; ``--kinematics numeric`` times pinocchio's getters
-instead) and compiled C for the level functions (:mod:`wbc.jit`, built once per machine and
-cached; ``--no-jit`` times CasADi's virtual machine).
+C function, :mod:`wbc.fused` — its ``solve`` is that call; ``jit`` or ``vm``), whether it
+succeeded (or only partly: a lower level failed and the command is the levels above it), and
+the largest difference of its command from the reference's. Taking turns, every tick finds
+the CPU caches as the other backends left them; so the backends of :data:`DEDICATED` (daqp,
+the default) also replay the states alone, one tick after the other — a dedicated control
+loop, caches warm — reported as ``dedicated`` beside the interleaved figures (the "alone"
+column). Controllers use ``kinematics="compiled"`` by default (poses and Jacobians inside the
+compiled functions; ``--kinematics numeric`` times pinocchio's getters instead) and compiled C
+for the level functions (:mod:`wbc.jit`, built once per machine and cached; ``--no-jit`` times
+CasADi's virtual machine).
 
 The scaling study times the ``one_level`` stack on fixed-base serial chains of 7 to 100
 joints. Outputs, in ``--out``: ``solver_timing.json`` (raw per-tick samples [µs] and the
@@ -41,6 +44,7 @@ import pinocchio as pin
 import wbc
 import wbc.robots
 from wbc.experiments.arguments import installed_backends
+from wbc.experiments.loops import timed_turns
 from wbc.experiments.machine import describe_machine
 from wbc.experiments.progress import report_progress
 from wbc.experiments.study import save_figure
@@ -49,6 +53,8 @@ from wbc.solvers import available_backends
 from wbc.tasks import Bounds, ConfigurationLimit, FrameTask, PostureTask, VelocityLimit
 
 STACKS = ("one_level", "two_levels", "three_levels", "acceleration")
+#: Backends also timed alone, in a dedicated loop over the same states (the default one).
+DEDICATED = ("daqp",)
 REFERENCE = ("clarabel", "tight")
 DT = 0.01  # control period [s]
 CIRCLE_RADIUS, CIRCLE_PERIOD = 0.1, 4.0  # end-effector target path [m], [s]
@@ -175,12 +181,32 @@ def replay(robot, kind: str, backends: list[str], run: dict, warmup: int,
             ok[backend].append(sol.ok)
             partial[backend].append(sol.partial)
             diff[backend].append(float(np.abs(cmd - run["commands"][k]).max()))
-    return {b: {"path": _path(controllers[b]),
-                "samples": {key: np.round(val, 3).tolist() for key, val in samples[b].items()},
-                "success_rate": float(np.mean(ok[b])), "partial_rate": float(np.mean(partial[b])),
-                "max_abs_diff_vs_reference": float(max(diff[b])),
-                "stats": {key: _stats(val) for key, val in samples[b].items()}}
-            for b in backends}
+    out = {b: {"path": _path(controllers[b]),
+               "samples": {key: np.round(val, 3).tolist() for key, val in samples[b].items()},
+               "success_rate": float(np.mean(ok[b])), "partial_rate": float(np.mean(partial[b])),
+               "max_abs_diff_vs_reference": float(max(diff[b])),
+               "stats": {key: _stats(val) for key, val in samples[b].items()}}
+           for b in backends}
+    for backend in set(DEDICATED) & set(backends):
+        out[backend]["dedicated"] = _stats(dedicated_replay(
+            wbc.Controller(robot, build_stack(robot, kind), backend=backend, dt=DT,
+                           kinematics=kinematics, jit=jit), kind, run)[warmup:] * 1e6)
+    return out
+
+
+def dedicated_replay(controller, kind: str, run: dict) -> np.ndarray:
+    """``controller`` alone on the reference run's states, one tick after the other (a
+    dedicated control loop, its caches warm; see :mod:`wbc.experiments.loops`): the wall time
+    of every ``step`` [s]."""
+    states, goals = run["states"], run["targets"]
+
+    def turn(k: int) -> float:
+        (q, v), refs = states[k], _references(kind, goals[k])
+        t0 = time.perf_counter()
+        controller.step(q, v, **refs)
+        return time.perf_counter() - t0
+
+    return timed_turns({"alone": turn}, len(states), len(states))["alone"]
 
 
 def _path(controller) -> str:
@@ -244,7 +270,8 @@ def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, w
         for backend, result in replay(robot, "one_level", backends, ref, warmup, kinematics,
                                       jit).items():
             report["scaling"].setdefault(backend, {})[str(n)] = {
-                "stats": result["stats"], "success_rate": result["success_rate"]}
+                "stats": result["stats"], "success_rate": result["success_rate"],
+                **({"dedicated": result["dedicated"]} if "dedicated" in result else {})}
         if progress:
             progress(len(combos) + j, total, f"scaling: {n}-joint chain")
     return report
@@ -260,15 +287,18 @@ def markdown(report: dict) -> str:
     for name, per_stack in report["results"].items():
         for kind, per_backend in per_stack.items():
             out += [f"### {name} — {kind}", "",
-                    "| backend | path | tick median | p95 | max | kinematics | assembly | "
-                    "solve | python | success | partial | max abs diff vs ref |",
-                    "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                    "| backend | path | tick median | p95 | max | alone: median / p95 | "
+                    "kinematics | assembly | solve | python | success | partial | max abs diff "
+                    "vs ref |",
+                    "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
             for backend, r in per_backend.items():
                 s = r["stats"]
+                alone = (f"{r['dedicated']['median']:.1f} / {r['dedicated']['p95']:.1f}"
+                         if "dedicated" in r else "–")
                 out.append(
                     f"| {backend} | {r['path']} | {s['tick']['median']:.1f} | "
                     f"{s['tick']['p95']:.1f} | "
-                    f"{s['tick']['max']:.0f} | {s['kinematics']['median']:.1f} | "
+                    f"{s['tick']['max']:.0f} | {alone} | {s['kinematics']['median']:.1f} | "
                     f"{s['assembly']['median']:.1f} | {s['solve']['median']:.1f} | "
                     f"{s['python']['median']:.1f} | "
                     f"{100 * r['success_rate']:.1f} % | {100 * r['partial_rate']:.1f} % | "
@@ -283,6 +313,10 @@ def markdown(report: dict) -> str:
             cells = [f"{per[str(n)]['stats']['tick']['median']:.0f}" if str(n) in per else "-"
                      for n in joints]
             out.append(f"| {backend} | " + " | ".join(cells) + " |")
+            if any("dedicated" in entry for entry in per.values()):
+                cells = [f"{per[str(n)]['dedicated']['median']:.0f}"
+                         if "dedicated" in per.get(str(n), {}) else "-" for n in joints]
+                out.append(f"| {backend} alone | " + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"
 
 

@@ -45,7 +45,9 @@ placo tick is ``robot.state.q = q`` + ``update_kinematics()`` + (when the target
 ``controller.step(q, ee=T)``. Taking turns with them in the rotation, on wbc's QP of the tick:
 the bare call of the fused function (``bare_median_s``: model stage, assembly and solve in C,
 nothing else) and DAQP's own Python call ``daqp.solve`` on the very same QP arrays
-(``raw_daqp_median_s``, the arrays built beforehand, untimed).
+(``raw_daqp_median_s``, the arrays built beforehand, untimed). Then, as in ``vs_pink``, both
+loops again in blocks of 100 ticks, each a dedicated control loop (``dedicated``, with the
+bare call in blocks of its own).
 
 placo pins pinocchio 3.8 (``pin==3.8``) where wbc's CI installs pinocchio 4: install it in an
 environment of its own (``pip install 'wbc[placo]'``).
@@ -68,7 +70,7 @@ import numpy as np
 
 from .arguments import installed_backends
 from .vs_mink import HAND, panda_urdf_without_meshes
-from .vs_pink import DT, POSE_TOL, POSTURE_COST, Q0, build_wbc, targets
+from .vs_pink import DT, POSE_TOL, POSTURE_COST, Q0, build_wbc, dedicated_loops, targets
 
 BACKENDS = ("daqp",)
 PLACO_REGULARIZATION = 1e-8  # placo's Problem::regularization, on Δq
@@ -89,6 +91,8 @@ def placo_panda(folder: Path):
 class PlacoLoop:
     """placo's side: robot, solver, tasks and limits; :meth:`tick` is what is timed."""
 
+    name = "placo"
+
     def __init__(self, folder: Path) -> None:
         import placo
 
@@ -104,6 +108,11 @@ class PlacoLoop:
         posture.set_joints({f"panda_joint{i + 1}": float(q) for i, q in enumerate(Q0)})
         posture.configure("posture", "soft", POSTURE_COST ** 2)
         self._q = self.robot.state.q.copy()  # floating base (7, identity) then the 7 joints
+
+    @staticmethod
+    def target(T: np.ndarray) -> np.ndarray:
+        """``T`` (world, (4, 4)) as placo's target: itself."""
+        return T
 
     def tick(self, q: np.ndarray, target: np.ndarray | None = None) -> np.ndarray:
         self._q[7:] = q
@@ -229,6 +238,7 @@ def run_backend(backend: str, ticks: int) -> dict:
         "final_position_error_placo_m": float(np.linalg.norm(T_p[:3, 3] - goal[:3, 3])),
         "final_position_diff_m": float(np.linalg.norm(T_w[:3, 3] - T_p[:3, 3])),
         "pose_tol": POSE_TOL,
+        "dedicated": dedicated_loops(build_wbc(robot, backend), PlacoLoop(folder), goals, ticks),
     }
     if fused:
         bare_med, bare_p95 = _percentiles(bare[1:])
@@ -262,16 +272,21 @@ def _raw_solve(workspace, raw_daqp, clock) -> float:
 
 def markdown_table(results: dict) -> str:
     rows = ["| backend | wbc median / p95 [µs] | placo median / p95 [µs] | wbc / placo | "
-            "bare fused call [µs] | step / bare | daqp.solve [µs] | mirror Δv max [rad/s] | "
-            "formulation Δv median / max [rad/s] |",
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+            "bare fused call [µs] | step / bare | daqp.solve [µs] | dedicated loops: wbc / "
+            "placo [µs] (ratio), step / bare | mirror Δv max [rad/s] | formulation Δv median / "
+            "max [rad/s] |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for name, r in results.items():
         bare = (f"{r['bare_median_s'] * 1e6:.1f} | {r['step_over_bare']:.2f} | "
                 f"{r['raw_daqp_median_s'] * 1e6:.1f}" if r["fused"] else "– | – | –")
+        d = r["dedicated"]
+        dedicated = (f"{d['wbc_median_s'] * 1e6:.1f} / {d['placo_median_s'] * 1e6:.1f} "
+                     f"({d['ratio']:.3f})"
+                     + (f", {d['step_over_bare']:.2f}" if "step_over_bare" in d else ""))
         rows.append(
             f"| {name}{' (fused)' if r['fused'] else ''} | {r['wbc_median_s'] * 1e6:.1f} / "
             f"{r['wbc_p95_s'] * 1e6:.1f} | {r['placo_median_s'] * 1e6:.1f} / "
-            f"{r['placo_p95_s'] * 1e6:.1f} | {r['ratio']:.3f} | {bare} | "
+            f"{r['placo_p95_s'] * 1e6:.1f} | {r['ratio']:.3f} | {bare} | {dedicated} | "
             f"{r['mirror_diff_max']:.0e} | {r['formulation_diff_median']:.2g} / "
             f"{r['formulation_diff_max']:.2g} |")
     return "\n".join(rows)

@@ -62,3 +62,20 @@ def test_cli_writes_the_contract(tmp_path):
         assert key in result["by_level"]["velocity"]
         assert all(key in result["by_backend"][label] for label in labels)
     assert result["violations"] == 0 and result["nans"] == 0
+
+
+@pytest.mark.parametrize("finding", audit.FINDINGS)
+def test_cli_exits_1_on_a_finding(tmp_path, monkeypatch, finding):
+    from wbc.experiments.cli import main
+
+    real = audit.audit
+
+    def with_finding(*args, **kwargs):
+        result = real(*args, **kwargs)
+        result[finding] = 1
+        return result
+
+    monkeypatch.setattr(audit, "audit", with_finding)
+    assert main(["audit", "--runs", "2", "--backends", "daqp", "--ticks", "3",
+                 "--out", str(tmp_path)]) == 1
+    assert json.loads((tmp_path / "audit.json").read_text())[finding] == 1

@@ -44,7 +44,8 @@ def test_demo_writes_a_table_and_json(tmp_path, capsys):
 
 def test_bench_writes_json_markdown_and_plots(tmp_path, capsys):
     code = cli.main(["bench", "--robots", "mecanum_gen3", "--stacks", "one_level",
-                     "acceleration", "--backends", "proxqp", "--ticks", "5", "--warmup", "2",
+                     "acceleration", "--backends", "proxqp", "daqp", "--ticks", "5",
+                     "--warmup", "2",
                      "--scaling-ticks", "3", "--scaling-joints", "7", "--out", str(tmp_path)])
     assert code == 0
     progress = capsys.readouterr().err.splitlines()
@@ -53,11 +54,17 @@ def test_bench_writes_json_markdown_and_plots(tmp_path, capsys):
                         "[########################] 3/3  scaling: 7-joint chain"]
     report = json.loads((tmp_path / "solver_timing.json").read_text())
     for kind in ("one_level", "acceleration"):
-        result = report["results"]["mecanum_gen3"][kind]["proxqp"]
-        assert len(result["samples"]["tick"]) == 5
-        assert result["success_rate"] == 1.0
+        per_backend = report["results"]["mecanum_gen3"][kind]
+        for result in per_backend.values():
+            assert len(result["samples"]["tick"]) == 5
+            assert result["success_rate"] == 1.0
+        # daqp (the default) is also timed alone, over the same ticks after the warm-up
+        assert per_backend["daqp"]["dedicated"]["median"] > 0
+        assert "dedicated" not in per_backend["proxqp"]
     assert report["scaling"]["proxqp"]["7"]["success_rate"] == 1.0
-    assert "### mecanum_gen3 — one_level" in (tmp_path / "solver_timing.md").read_text()
+    assert report["scaling"]["daqp"]["7"]["dedicated"]["median"] > 0
+    markdown = (tmp_path / "solver_timing.md").read_text()
+    assert "### mecanum_gen3 — one_level" in markdown and "| daqp alone |" in markdown
     for png in ("solver_timing.png", "scaling.png"):
         assert (tmp_path / png).read_bytes()[:4] == b"\x89PNG"
     assert "cpu" in report["machine"]

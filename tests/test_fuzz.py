@@ -79,3 +79,14 @@ def test_cli_writes_the_contract(tmp_path):
     assert set(result["outcomes"]) >= {"daqp"}
     assert sum(result["outcomes"]["daqp"].values()) > 0
     assert "| backend |" in (tmp_path / "fuzz.md").read_text()
+
+
+def test_cli_exits_1_when_the_campaign_finds_a_defect(tmp_path, monkeypatch):
+    from wbc.experiments.cli import main
+
+    found = {"cases": 1, "outcomes": {"daqp": {"defect": 1}}, "parameters": {},
+             "defects": [{"family": "stack", "backend": "daqp", "defect": "nan",
+                          "message": "x is NaN"}]}
+    monkeypatch.setattr(fuzz, "campaign", lambda *args, **kwargs: found)
+    assert main(["fuzz", "--cases", "1", "--backends", "daqp", "--out", str(tmp_path)]) == 1
+    assert json.loads((tmp_path / "fuzz.json").read_text())["defects"] == found["defects"]

@@ -26,6 +26,12 @@ def test_vs_pink_writes_its_json(tmp_path, capsys):
         assert result["wbc_median_s"] > 0 and result["pink_median_s"] > 0
         assert result["wbc_failures"] == 0
         assert result["command_diff_max"] < 1e-6  # exact solvers: the same QP
+        dedicated = result["dedicated"]  # the loops again, each in blocks of its own
+        assert dedicated["wbc_median_s"] > 0 and dedicated["pink_median_s"] > 0
+        assert dedicated["block"] == 100
+    # the fused tick's bare call, timed in blocks too
+    assert report["backends"]["daqp"]["dedicated"]["step_over_bare"] > 0
+    assert "step_over_bare" not in report["backends"]["quadprog"]["dedicated"]
     assert {"platform", "cpu", "python", "packages"} <= set(report["machine"])
     out = capsys.readouterr().out
     assert "| daqp |" in out and "| quadprog |" in out and "wbc / pink" in out

@@ -74,4 +74,7 @@ def test_vs_placo_writes_its_json(tmp_path, capsys):
     assert result["mirror_agrees"], result["mirror_diff_max"]  # placo's QP, understood
     assert result["wbc_median_s"] > 0 and result["placo_median_s"] > 0
     assert result["bare_median_s"] > 0 and result["raw_daqp_median_s"] > 0
+    dedicated = result["dedicated"]
+    assert dedicated["wbc_median_s"] > 0 and dedicated["placo_median_s"] > 0
+    assert dedicated["step_over_bare"] > 0
     assert "| daqp (fused) |" in capsys.readouterr().out

@@ -15,6 +15,8 @@ import numpy as np
 
 from .errors import BoundsOrderError, NonFiniteError, ShapeError
 
+_ndarray, _FLOAT = np.ndarray, np.dtype(float)
+
 
 def all_finite(vector: np.ndarray) -> bool:
     """Whether a 1-D float array holds neither NaN nor ±inf (see the module docstring)."""
@@ -27,15 +29,18 @@ def checked_array(value, shape: tuple[int, int], what: str,
     1-D array of ``rows`` entries fits a column. Raises :class:`ShapeError` or
     :class:`NonFiniteError` naming ``what`` (NaN is always refused, ``±inf`` unless
     ``allow_inf``)."""
-    arr = np.asarray(value, dtype=float)
-    rows, cols = shape
-    if arr.ndim == 0 and rows * cols == 1:
-        arr = arr.reshape(1, 1)
-    elif arr.ndim == 1 and cols == 1 and arr.shape[0] == rows:
-        arr = arr.reshape(rows, 1)
+    # (a float array of the right shape, a reference set every tick, skips the conversions)
+    arr = value if type(value) is _ndarray and value.dtype is _FLOAT else np.asarray(
+        value, dtype=float)
     if arr.shape != shape:
-        raise ShapeError(f"{what} expects shape {(rows,) if cols == 1 else shape}, "
-                         f"got {np.shape(value)}")
+        rows, cols = shape
+        if arr.ndim == 0 and rows * cols == 1:
+            arr = arr.reshape(1, 1)
+        elif arr.ndim == 1 and cols == 1 and arr.shape[0] == rows:
+            arr = arr.reshape(rows, 1)
+        else:
+            raise ShapeError(f"{what} expects shape {(rows,) if cols == 1 else shape}, "
+                             f"got {np.shape(value)}")
     check_finite(arr, what, allow_inf)
     return arr
 

@@ -339,15 +339,14 @@ class Controller:
         """Set references by keyword without solving (checked: name, shape, NaN, inf).
         All-or-nothing: every value is checked before any is written, so a refused call leaves
         the controller as it was."""
-        checked, paired = {}, False
+        checked, paired = [], False
         for key, value in references.items():
             name, view, shape, allow_inf, what, pair = self._reference(key)
-            checked[name] = (view, checked_array(value, shape, what, allow_inf))
+            checked.append((name, view, checked_array(value, shape, what, allow_inf)))
             paired |= pair
         if paired:
-            self.workspace.check_bound_pairs({name: value for name, (_, value)
-                                              in checked.items()})
-        for view, value in checked.values():
+            self.workspace.check_bound_pairs({name: value for name, _, value in checked})
+        for _, view, value in checked:
             view[...] = value
 
     # ------------------------------------------------------------------ the tick
