@@ -23,6 +23,7 @@ def test_reproduce_quick_writes_the_report(tmp_path):
     assert json.loads((tmp_path / "bench" / "solver_timing.json").read_text())
     assert json.loads((tmp_path / "vs_pink" / "vs_pink.json").read_text())["backends"]
     assert "## Summary" in report and "## Peers" in report and "## Solver timing" in report
+    assert "| pink | daqp |" in report and "dedicated ratio" in report
 
 
 def test_a_failing_step_does_not_lose_the_others(tmp_path, monkeypatch):
