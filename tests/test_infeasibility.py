@@ -132,3 +132,40 @@ def test_the_controller_keeps_the_conflict_on_its_last_solution():
     assert set(ctrl.last_solution.conflict) == {"limits", "sum"}
     with pytest.raises(wbc.InfeasibleError, match="cannot hold together: 'sum'"):
         wbc.Controller(Point(), stack, dt=0.01, fallback="raise").step(np.zeros(2))
+
+
+def test_the_conflict_is_found_when_first_read_not_on_the_failed_tick(monkeypatch):
+    """The LP (and scipy's import) stays off the failed tick; the tick's own arrays are kept, so
+    the conflict read after later ticks is still that tick's."""
+    from wbc import infeasibility
+
+    calls = []
+    real = infeasibility.level_conflict
+    monkeypatch.setattr(infeasibility, "level_conflict",
+                        lambda *args: calls.append(1) or real(*args))
+    stack = wbc.Stack(2).add(LinearTask(np.eye(2), [1.0, 1.0], name="t"))
+    stack.constrain(Bounds(-1, 1, name="limits"))
+    stack.constrain(LinearConstraint(np.ones((1, 2)), [3.0], [4.0], name="sum"))
+    ws = stack.workspace("daqp")
+    failed = ws.solve()
+    assert failed.status is wbc.Status.INFEASIBLE and calls == []
+    ws.set(**{"sum.lower": [-1.0], "sum.upper": [1.0]})  # the next tick is feasible
+    assert ws.solve().ok
+    assert set(failed.conflict) == {"limits", "sum"} and calls == [1]
+    assert "cannot hold together: 'sum'" in failed.message and calls == [1]  # found once
+    assert failed.levels[-1].conflict == failed.conflict
+
+
+def test_the_message_joins_head_details_and_notes():
+    stack = wbc.Stack(2).add(LinearTask(np.eye(2), [1.0, 1.0], name="t"))
+    stack.constrain(Bounds(-1, 1, name="limits"))
+    stack.constrain(LinearConstraint(np.ones((1, 2)), [3.0], [4.0], name="sum"))
+    solution = stack.workspace("daqp").solve()
+    solution.notes.append("fallback 'hold': zero command (hold)")
+    details = solution.diagnosis.details
+    assert solution.head.startswith("level 0 (tasks: t): infeasible")
+    assert details.startswith("hard constraints that cannot hold together")
+    assert solution.message == "; ".join([solution.head, details,
+                                          "fallback 'hold': zero command (hold)"])
+    solved = wbc.Stack(1).add(LinearTask(np.eye(1), [0.5], name="t")).workspace("daqp").solve()
+    assert solved.message == "" and solved.conflict == () and solved.diagnosis is None

@@ -52,11 +52,14 @@ and one warm-started backend solve per priority level) → the fallback policy i
 failed. ``solution.timings.model`` holds the first four steps.
 
 On the fused path (the default for a stack on daqp without task-scaling levels, with a C
-compiler, see :mod:`wbc.fused`), ``workspace.solve()`` is one call of a generated C function
-holding the compiled kinematics, the assembly and the daqp solves of every level
-(``timings.solve``); a tick it does not
-solve is solved again on the ordinary path, so statuses, partial solutions and fallbacks read
-the same. The returned command and ``last_solution`` are then reused buffers.
+compiler, see :mod:`wbc.fused`), the solve is one call of a generated C function holding the
+compiled kinematics, the assembly and the daqp solves of every level (``timings.solve``), made
+by the tick itself (a closure over the buffers, built once); a tick it does not solve is
+solved again on the ordinary path, so statuses, partial solutions and fallbacks read the same.
+The returned command and ``last_solution`` are then reused buffers.
+
+A failed tick costs about what a solved one does: the search for the conflicting constraints
+(:mod:`wbc.infeasibility`) runs when ``solution.conflict`` or ``solution.message`` is read.
 """
 
 from __future__ import annotations
@@ -444,7 +447,7 @@ class Controller:
             command = solution.x
         elif solution.partial and self.fallback != "raise":
             solution.fallback = "partial"
-            solution.message += "; command from the levels above (partial)"
+            solution.notes.append("command from the levels above (partial)")
             command = solution.x
         else:
             command = self._fall_back(solution)
@@ -478,8 +481,7 @@ class Controller:
             command = np.zeros(self.compiled.n)
             what = "zero command (hold)"
         solution.fallback = policy
-        solution.message = (f"{solution.message}; " if solution.message else "") + \
-            f"fallback {policy!r}: {what}"
+        solution.notes.append(f"fallback {policy!r}: {what}")
         return command
 
     def __repr__(self) -> str:

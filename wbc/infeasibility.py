@@ -13,7 +13,10 @@ and the rest is feasible (Gleeson & Ryan, 1990). ``-hᵀ y`` is the margin of th
 in the normalised rows' units, the constraints miss each other); a conflict below ``tol`` is
 not reported (the solver then failed within its tolerance, not because of the data).
 
-This runs only after a level failed (one small LP, ≈ 1–3 ms), never on a solved tick.
+This runs only after a level failed (one small LP, ≈ 1–3 ms, and importing scipy the first
+time, ≈ 0.2 s), never on a solved tick — and not on the failed tick either: a failed QP keeps a
+:class:`Diagnosis` (a copy of its arrays), and the LP runs when the conflict or the message is
+first read, so that the tick hands its fallback command over in time.
 """
 
 from __future__ import annotations
@@ -140,3 +143,37 @@ def _entry(variables, index: int) -> str:
         if sl.start <= index < sl.stop:
             return f"{name}[{index - sl.start}]"
     return f"x[{index}]"
+
+
+class Diagnosis:
+    """The conflict of one failed QP of the cascade (:func:`level_conflict`), found the first
+    time it is asked for (see the module docstring); the arrays are copied when the QP fails
+    (the workspace's buffers are the next tick's).
+
+    Args:
+        block, A, lA, uA, lb, ub, variables: as :func:`level_conflict`.
+    """
+
+    __slots__ = ("_arguments", "_found")
+
+    def __init__(self, block, A: np.ndarray, lA: np.ndarray, uA: np.ndarray, lb: np.ndarray,
+                 ub: np.ndarray, variables) -> None:
+        self._arguments: tuple | None = (block, A.copy(), lA.copy(), uA.copy(), lb.copy(),
+                                         ub.copy(), variables)
+        self._found: tuple[tuple[str, ...], str] | None = None
+
+    def found(self) -> tuple[tuple[str, ...], str]:
+        """``(names, details)`` of :func:`level_conflict`, computed once."""
+        if self._found is None:
+            assert self._arguments is not None  # released only once found
+            self._found = level_conflict(*self._arguments)
+            self._arguments = None
+        return self._found
+
+    @property
+    def conflict(self) -> tuple[str, ...]:
+        return self.found()[0]
+
+    @property
+    def details(self) -> str:
+        return self.found()[1]

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .infeasibility import Diagnosis
 from .qp import Status
 from .variables import Variables
 
@@ -46,10 +47,12 @@ class LevelResult:
         frozen_band: relative half-width of the band the frozen rows were kept in: 0 for exact
             equalities, the stack's ``freeze_tol``, or the workspace's retry band when the
             exact solve failed (see :class:`~wbc.Stack`).
+        diagnosis: the :class:`~wbc.infeasibility.Diagnosis` of a failed QP whose conflict is
+            looked for (the backend found it infeasible, or it is the first QP and failed);
+            ``None`` otherwise.
         conflict: the names of the hard constraints that cannot hold together in this QP (an
-            irreducible set, see :mod:`wbc.infeasibility`), looked for when the backend found
-            it infeasible or when it is the first QP and failed; empty otherwise (or when the
-            constraints can hold: the failure was the solver's).
+            irreducible set, see :mod:`wbc.infeasibility`; found when first read); empty when
+            not looked for or when the constraints can hold (the failure was the solver's).
     """
 
     label: str
@@ -59,7 +62,11 @@ class LevelResult:
     iterations: int = -1
     message: str = ""
     frozen_band: float = 0.0
-    conflict: tuple[str, ...] = ()
+    diagnosis: Diagnosis | None = None
+
+    @property
+    def conflict(self) -> tuple[str, ...]:
+        return () if self.diagnosis is None else self.diagnosis.conflict
 
 
 @dataclass(slots=True)
@@ -76,7 +83,9 @@ class Solution:
         scale: task scale ``s ∈ [0, 1]`` of the first scaling level, ``None`` if none.
         scales: ``priority -> s`` for every scaling level.
         timings: :class:`Timings` [s].
-        message: empty on success, else what failed and where.
+        message: empty on success, else what failed and where: ``head`` (the failing QP and
+            its status), the conflict's details (see ``conflict``) and ``notes`` (e.g. the
+            fallback the controller applied), joined by ``"; "``.
         partial: the solve failed at a lower priority, and ``x`` is the solution of every
             level above it (hard constraints included): a usable command. ``False`` when solved
             or when the first level failed.
@@ -85,7 +94,9 @@ class Solution:
         conflict: the failing QP's ``LevelResult.conflict``: the names of the hard constraints
             that cannot hold together there (drop any one and the rest can; ``"the levels
             above"`` when the optima of higher priorities take part); empty when solved or when
-            none is found. ``message`` details which rows and bounds.
+            none is found. ``message`` details which rows and bounds. Found when ``conflict`` or
+            ``message`` is first read (one LP, see :mod:`wbc.infeasibility`), not on the tick.
+        diagnosis: the failing QP's :class:`~wbc.infeasibility.Diagnosis` (or ``None``).
     """
 
     x: np.ndarray
@@ -94,10 +105,20 @@ class Solution:
     variables: Variables
     scales: dict[int, float] = field(default_factory=dict)
     timings: Timings = field(default_factory=Timings)
-    message: str = ""
+    head: str = ""
     partial: bool = False
     fallback: str | None = None
-    conflict: tuple[str, ...] = ()
+    diagnosis: Diagnosis | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def message(self) -> str:
+        details = "" if self.diagnosis is None else self.diagnosis.details
+        return "; ".join(part for part in (self.head, details, *self.notes) if part)
+
+    @property
+    def conflict(self) -> tuple[str, ...]:
+        return () if self.diagnosis is None else self.diagnosis.conflict
 
     @property
     def ok(self) -> bool:

@@ -24,7 +24,7 @@ from scipy.linalg import get_lapack_funcs
 from .checks import check_bounds_order, checked_array
 from .compiler import SCALING_LP, CompiledStack, QPBlock
 from .errors import UnknownNameError, WbcError
-from .infeasibility import level_conflict
+from .infeasibility import Diagnosis
 from .qp import Backend, QPResult, Status
 from .solution import LevelResult, Solution, Timings
 
@@ -292,16 +292,16 @@ class Workspace:
             if result.status is not Status.SOLVED:
                 state.warm = None
                 status = result.status
-                # Which hard constraints conflict (one LP, ≈ 3 ms): when the backend says
-                # infeasible, or when the first QP failed (the command is then a fallback;
-                # some backends stop at their iteration limit on an infeasible problem).
-                conflict, details = (level_conflict(block, *state.qp[2:], self.compiled.variables)
-                                     if status is Status.INFEASIBLE or x is None else ((), ""))
+                # Which hard constraints conflict (one LP, found when first read): when the
+                # backend says infeasible, or when the first QP failed (the command is then a
+                # fallback; some backends stop at their iteration limit on an infeasible
+                # problem).
+                diagnosis = (Diagnosis(block, *state.qp[2:], self.compiled.variables)
+                             if status is Status.INFEASIBLE or x is None else None)
                 message = f"{block.label}: {result.status.value}" + (
-                    f" ({result.message})" if result.message else "") + self._diagnose(state) + (
-                    f"; {details}" if details else "")
+                    f" ({result.message})" if result.message else "") + self._diagnose(state)
                 levels.append(LevelResult(block.label, result.status, np.zeros(n), rank,
-                                          result.iterations, result.message, band, conflict))
+                                          result.iterations, result.message, band, diagnosis))
                 break
             z = result.x
             if self.warm_start:
@@ -324,7 +324,7 @@ class Workspace:
         partial = x is not None and status is not Status.SOLVED
         return Solution(np.zeros(n) if x is None else x, status, levels,
                         self.compiled.variables, scales, Timings(0.0, assembly, solving), message,
-                        partial, conflict=levels[-1].conflict if levels else ())
+                        partial, diagnosis=levels[-1].diagnosis if levels else None)
 
     def _append_frozen_rows(self, state: _BlockState, x: np.ndarray) -> int:
         """Write earlier levels' frozen rows below the block's own rows; return the rank of the
