@@ -76,6 +76,9 @@ def classify(tick) -> tuple[str, str | None, str]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             solution, (lower, upper) = tick()
+            # a failed tick's conflict search runs when its message is first read
+            # (wbc.infeasibility): read it here, so that the campaign covers it too
+            solution.message  # noqa: B018
     except wbc.WbcError as exc:
         outcome, defect, message = "error", None, f"{type(exc).__name__}: {exc}"
     except Exception as exc:  # what the campaign looks for
@@ -267,7 +270,7 @@ def robot_cases(backend: str, seed: int, ticks: int):
             def tick(q=q, v=v, refs=refs, ctrl=ctrl):
                 command = ctrl.step(q, v, **refs)
                 solution = ctrl.last_solution
-                return _Commanded(command, solution.status), ctrl.workspace.variable_bounds()
+                return _Commanded(command, solution), ctrl.workspace.variable_bounds()
 
             case = {"family": "robot", "backend": label, "seed": seed, "robot": name,
                     "tick": k, "injected": defect}
@@ -275,10 +278,11 @@ def robot_cases(backend: str, seed: int, ticks: int):
 
 
 class _Commanded:
-    """What a controller tick is judged by: the command it returns (``x``) and its status."""
+    """What a controller tick is judged by: the command it returns (``x``), and its solution's
+    status and message."""
 
-    def __init__(self, x, status):
-        self.x, self.status = x, status
+    def __init__(self, x, solution):
+        self.x, self.status, self.message = x, solution.status, solution.message
 
 
 # ---------------------------------------------------------------------------------------------

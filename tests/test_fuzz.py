@@ -39,9 +39,22 @@ def test_robot_cases_have_no_defect_on_the_fused_tick():
 
 class _Solved:
     status = wbc.Status.SOLVED
+    message = ""
 
     def __init__(self, x):
         self.x = np.asarray(x, dtype=float)
+
+
+def test_classify_reads_the_message_so_a_broken_diagnosis_is_a_defect():
+    class Failed(_Solved):
+        status = wbc.Status.INFEASIBLE
+
+        @property
+        def message(self):
+            raise IndexError("the conflict search broke")
+
+    outcome, defect, message = fuzz.classify(lambda: (Failed([0.0, 0.0]), BOUNDS))
+    assert (outcome, defect) == ("defect", "exception") and "conflict search" in message
 
 
 BOUNDS = (np.array([-1.0, -1.0]), np.array([1.0, 1.0]))
