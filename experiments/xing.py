@@ -614,30 +614,36 @@ def bounds_loops(n: int = 10_000, ticks: int = 300, seed: int = 0) -> dict:
     return out
 
 
+def random_state(rng: np.random.Generator, robot) -> tuple[np.ndarray, np.ndarray, dict]:
+    """``(q, v, references)`` of one random AMP tick on ``robot`` (a mecanum base + arm): the
+    arm within 0.6 rad of home and 0.3 rad inside its limits, the base at home; velocities
+    within 10 % of their limits, the base at rest in half of the states; a target near the
+    hand with small, moderate or saturating velocity and acceleration demands (0.1, 1, 10×)."""
+    lim = robot.limits
+    q = robot.neutral().copy()
+    q[3:] += rng.uniform(-0.6, 0.6, robot.n_arm)
+    q[3:] = np.clip(q[3:], lim.q_lower[3:] + 0.3, lim.q_upper[3:] - 0.3)
+    v = rng.uniform(0.1 * lim.v_lower, 0.1 * lim.v_upper)
+    v[:3] *= rng.integers(0, 2)
+    target = robot.frame_pose(q, "ee").copy()
+    size = rng.choice([0.1, 1.0, 10.0])
+    target[:3, 3] += rng.normal(0.0, 0.01 * size, 3)
+    return q, v, {"target": target, "target_velocity": rng.normal(0, 0.02 * size, 6),
+                  "target_acceleration": rng.normal(0, 0.1 * size, 6)}
+
+
 def equivalence(robot, states: int, seed: int = 0, backend: str = "daqp",
                 jit: bool = True) -> dict:
     """QP (tight profile) vs closed form at random states of the robot (one tick each)."""
     rng = np.random.default_rng(seed)
     qp = amp_controller(robot, POSITION, backend, "tight", jit)
     closed = ClosedFormPlanner(robot, POSITION, "amp", jit)
-    lim = robot.limits
     equal = differ = 0
     worst_equal = 0.0
     scale_ok = True
     reasons = {"saturation or base enabled": 0, "tertiary scaled (β < 1) or bound active": 0}
-    q_home = robot.neutral()
     for _ in range(states):
-        q = q_home.copy()
-        q[3:] += rng.uniform(-0.6, 0.6, robot.n_arm)
-        q[3:] = np.clip(q[3:], lim.q_lower[3:] + 0.3, lim.q_upper[3:] - 0.3)
-        v = rng.uniform(0.1 * lim.v_lower, 0.1 * lim.v_upper)
-        v[:3] *= rng.integers(0, 2)  # half of the states with the base at rest
-        pose = robot.frame_pose(q, "ee")
-        target = pose.copy()
-        size = rng.choice([0.1, 1.0, 10.0])  # small, moderate and saturating demands
-        target[:3, 3] += rng.normal(0.0, 0.01 * size, 3)
-        refs = {"target": target, "target_velocity": rng.normal(0, 0.02 * size, 6),
-                "target_acceleration": rng.normal(0, 0.1 * size, 6)}
+        q, v, refs = random_state(rng, robot)
         x_qp = qp.step(q, v, **refs)
         x_cf = closed.step(q, v, **refs)
         info = closed.last_info
