@@ -39,7 +39,7 @@ SOLVER_PROFILES: dict[str, dict[str, dict]] = {
         "tight": {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10,
                   "tol_ktratio": 1e-8, "max_iter": 500},
     },
-    "daqp": {"default": {"eta_prox": 1e-10}, "tight": {"primal_tol": 1e-10, "eta_prox": 1e-10}},
+    "daqp": {"default": {}, "tight": {"primal_tol": 1e-10, "eta_prox": 1e-10}},
     "osqp": {
         "default": {"eps_abs": 1e-5, "eps_rel": 1e-5, "polishing": False},
         "tight": {"eps_abs": 1e-10, "eps_rel": 1e-10, "polishing": True, "max_iter": 200_000,

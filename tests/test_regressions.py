@@ -228,3 +228,30 @@ def test_qpoases_level_with_a_partial_hessian_below_frozen_rows(retry, monkeypat
         np.testing.assert_allclose(result.x[:2], 0.0, atol=1e-9)
     else:  # the premise: qpOASES' own first attempt fails here
         assert result.status is not wbc.Status.SOLVED
+
+
+def test_daqp_retries_a_solve_its_tight_proximal_tolerance_fails():
+    """A level of a random ``wbc fuzz`` stack (data scaled up to 1e6, singular Hessian): with
+    the profiles' eta_prox = 1e-10 DAQP reports it unbounded, with its own 1e-6 it solves it.
+    The backend retries at 1e-6 and says so; the answer is DAQP's default's."""
+    from pathlib import Path
+
+    qp = np.load(Path(__file__).parent / "data" / "daqp_unbounded_at_tight_eta_prox.npz")
+    data = [qp[k] for k in ("H", "g", "A", "lA", "uA", "lb", "ub")]
+    loose = make_backend("daqp", "default", eta_prox=1e-6)
+    loose.setup(*data)
+    expected = loose.solve()
+    assert expected.status is wbc.Status.SOLVED and expected.message == ""
+    for profile in ("default", "tight"):
+        backend = make_backend("daqp", profile)
+        backend.setup(*data)
+        result = backend.solve()
+        assert result.status is wbc.Status.SOLVED, result.message
+        assert result.message == "solved with eta_prox 1e-6 after unbounded"
+        np.testing.assert_allclose(result.x, expected.x, atol=1e-9 * np.abs(expected.x).max())
+    infeasible = make_backend("daqp")  # not retried: an infeasible verdict stands
+    H = np.eye(2)
+    infeasible.setup(H, np.zeros(2), np.ones((1, 2)), np.array([5.0]), np.array([6.0]),
+                     -np.ones(2), np.ones(2))
+    result = infeasible.solve()
+    assert result.status is wbc.Status.INFEASIBLE and "eta_prox" not in result.message

@@ -54,7 +54,8 @@ class QPResult:
         y: multipliers of the rows of ``A``, shape ``(m,)`` (zeros if the backend gives none).
         z: multipliers of the bounds, shape ``(n,)``.
         iterations: iterations reported by the backend (``-1`` if unknown).
-        message: the backend's own words on a failure.
+        message: the backend's own words on a failure (or a note on a solved QP, e.g. that
+            daqp solved it on its retry).
     """
 
     x: np.ndarray
