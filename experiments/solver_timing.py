@@ -9,8 +9,8 @@ For each catalogue robot and each stack
   drift ``J̇v``, a PD posture, acceleration bounds;
 
 a closed loop tracking a circle with the end effector is run once with the reference backend
-(clarabel, tight profile). Every backend then replays exactly that state sequence
-(``≥ 1000`` ticks after a warm-up), so that all backends solve the same problems with realistic
+(clarabel, tight profile). Every backend then replays exactly that state sequence (3000
+ticks after a warm-up by default), so that all backends solve the same problems with realistic
 warm starts; the backends take turns at every state (interleaved, in a rotating order), so
 machine noise hits them alike. Per tick it records the wall time of ``Controller.step`` and its
 split into kinematics (model stage) / assembly / solve / the rest ("python": checks, fallback
@@ -369,10 +369,10 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"stacks (default: all of {list(STACKS)})")
     parser.add_argument("--backends", nargs="+", default=None, metavar="BACKEND",
                         help="backends (default: every available one)")
-    parser.add_argument("--ticks", type=int, default=1000, help="timed ticks (default 1000)")
+    parser.add_argument("--ticks", type=int, default=3000, help="timed ticks (default 3000)")
     parser.add_argument("--warmup", type=int, default=50, help="untimed first ticks")
-    parser.add_argument("--scaling-ticks", type=int, default=300,
-                        help="timed ticks per chain in the scaling study (default 300)")
+    parser.add_argument("--scaling-ticks", type=int, default=3000,
+                        help="timed ticks per chain in the scaling study (default 3000)")
     parser.add_argument("--scaling-joints", type=int, nargs="*", default=list(SCALING_JOINTS),
                         help="chain sizes of the scaling study (none: skip it)")
     parser.add_argument("--kinematics", choices=("compiled", "numeric"), default="compiled",
