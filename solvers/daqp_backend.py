@@ -151,8 +151,8 @@ class DaqpBackend(BackendBase):
                     LOOSE_ETA_PROX:
                 retried = self._solve_loosely()
                 if retried is not None:
-                    (x, _, flag, info), note = retried, "solved with eta_prox 1e-6 after " + \
-                        _exit(flag)[1]
+                    note = f"solved with eta_prox 1e-6 after {_exit(flag)[1]}"
+                    x, _, flag, info = retried
             if flag not in _SOLVED_FLAGS:
                 status, words = _exit(flag)
                 return failure(n, m, status, f"daqp: {words}", info["iterations"])

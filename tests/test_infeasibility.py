@@ -120,13 +120,19 @@ def test_a_lower_level_against_the_levels_above(backend):
     np.testing.assert_allclose(sol.x[0], 1.0, atol=1e-6)  # the command of the level above
 
 
+def bounds_against_sum() -> wbc.Stack:
+    """Two variables in [-1, 1] whose sum must lie in [3, 4]: "limits" and "sum" conflict."""
+    stack = wbc.Stack(2).add(LinearTask(np.eye(2), [1.0, 1.0], name="t"))
+    stack.constrain(Bounds(-1, 1, name="limits"))
+    stack.constrain(LinearConstraint(np.ones((1, 2)), [3.0], [4.0], name="sum"))
+    return stack
+
+
 def test_the_controller_keeps_the_conflict_on_its_last_solution():
     class Point:  # the smallest robot: no kinematics, two velocity coordinates
         nq = nv = 2
 
-    stack = wbc.Stack(2).add(LinearTask(np.eye(2), [1.0, 1.0], name="t"))
-    stack.constrain(Bounds(-1, 1, name="limits"))
-    stack.constrain(LinearConstraint(np.ones((1, 2)), [3.0], [4.0], name="sum"))
+    stack = bounds_against_sum()
     ctrl = wbc.Controller(Point(), stack, dt=0.01)
     np.testing.assert_array_equal(ctrl.step(np.zeros(2)), np.zeros(2))  # "hold"
     assert set(ctrl.last_solution.conflict) == {"limits", "sum"}
@@ -143,9 +149,7 @@ def test_the_conflict_is_found_when_first_read_not_on_the_failed_tick(monkeypatc
     real = infeasibility.level_conflict
     monkeypatch.setattr(infeasibility, "level_conflict",
                         lambda *args: calls.append(1) or real(*args))
-    stack = wbc.Stack(2).add(LinearTask(np.eye(2), [1.0, 1.0], name="t"))
-    stack.constrain(Bounds(-1, 1, name="limits"))
-    stack.constrain(LinearConstraint(np.ones((1, 2)), [3.0], [4.0], name="sum"))
+    stack = bounds_against_sum()
     ws = stack.workspace("daqp")
     failed = ws.solve()
     assert failed.status is wbc.Status.INFEASIBLE and calls == []
@@ -157,9 +161,7 @@ def test_the_conflict_is_found_when_first_read_not_on_the_failed_tick(monkeypatc
 
 
 def test_the_message_joins_head_details_and_notes():
-    stack = wbc.Stack(2).add(LinearTask(np.eye(2), [1.0, 1.0], name="t"))
-    stack.constrain(Bounds(-1, 1, name="limits"))
-    stack.constrain(LinearConstraint(np.ones((1, 2)), [3.0], [4.0], name="sum"))
+    stack = bounds_against_sum()
     solution = stack.workspace("daqp").solve()
     solution.notes.append("fallback 'hold': zero command (hold)")
     details = solution.diagnosis.details
