@@ -48,7 +48,7 @@ import numpy as np
 
 from wbc.errors import InvalidValueError, ShapeError
 
-from .reference import _matrix, _vector, pinv
+from .linalg import _matrix, _vector, pinv
 
 __all__ = ["DISTRIBUTION_METHODS", "friction_utilisation", "torque_distribution",
            "torque_null_space"]

@@ -33,7 +33,7 @@ import numpy as np
 
 from wbc.errors import InvalidValueError
 
-from .reference import _matrix, _nonneg_scalar, _vector, damped_pinv, nullspace_projector
+from .linalg import _matrix, _nonneg_scalar, _vector, damped_pinv, nullspace_projector
 
 __all__ = ["PETRIC_LAMBDA", "damped_projector", "dls_arm_velocity", "projector_leak"]
 

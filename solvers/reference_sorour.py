@@ -18,7 +18,7 @@ import numpy as np
 
 from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
 
-from .reference import (
+from .linalg import (
     _matrix,
     _nonneg_scalar,
     _vector,

@@ -46,7 +46,8 @@ import numpy as np
 
 from wbc.errors import InvalidValueError, ShapeError
 
-from .reference import _bounds, _matrix, _scale_intervals, _sns, _vector, pinv
+from .linalg import _bounds, _matrix, _vector, pinv
+from .sns import _scale_intervals, _sns
 
 __all__ = [
     "AMPInfo",

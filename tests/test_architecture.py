@@ -1,5 +1,6 @@
-"""The core's imports point one way: no module of ``wbc/`` imports one that imports it back, and
-``import wbc`` loads no robot, solver or experiment module."""
+"""The core's imports point one way: no module of ``wbc/`` (nor of ``solvers/``, which is
+``wbc.solvers``) imports one that imports it back, and ``import wbc`` loads no robot, solver or
+experiment module."""
 
 from __future__ import annotations
 
@@ -9,17 +10,23 @@ import sys
 from pathlib import Path
 
 CORE = Path(__file__).resolve().parents[1] / "wbc"
+SOLVERS = Path(__file__).resolve().parents[1] / "solvers"  # installed as wbc.solvers
 
 
-def module_name(path: Path, root: Path) -> str:
+def module_name(path: Path, root: Path, package: str | None = None) -> str:
+    """The dotted name of ``path`` in the package at ``root`` (named ``package``, default the
+    folder's name)."""
     parts = path.relative_to(root.parent).with_suffix("").parts
+    if package:
+        parts = (*package.split("."), *parts[1:])
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def imported_modules(path: Path, root: Path, known: set[str]) -> set[str]:
+def imported_modules(path: Path, root: Path, known: set[str],
+                     package_name: str | None = None) -> set[str]:
     """The modules of ``known`` that ``path`` imports, at any place in the file (lazy imports
     inside functions and ``TYPE_CHECKING`` blocks count: they are cycles all the same)."""
-    name = module_name(path, root)
+    name = module_name(path, root, package_name)
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     found = set()
     for node in ast.walk(ast.parse(path.read_text())):
@@ -38,11 +45,13 @@ def imported_modules(path: Path, root: Path, known: set[str]) -> set[str]:
     return found
 
 
-def import_graph(root: Path) -> dict[str, set[str]]:
-    """``module -> modules of the package at root it imports``."""
+def import_graph(root: Path, package: str | None = None) -> dict[str, set[str]]:
+    """``module -> modules of the package at root it imports`` (``package``: the package's
+    dotted name, when it is not the folder's)."""
     files = sorted(root.rglob("*.py"))
-    known = {module_name(f, root) for f in files}
-    graph = {module_name(f, root): imported_modules(f, root, known) for f in files}
+    known = {module_name(f, root, package) for f in files}
+    graph = {module_name(f, root, package): imported_modules(f, root, known, package)
+             for f in files}
     # a package's __init__ re-exporting its submodules is how a package is made, not a cycle
     for package in [m for m in graph if any(k.startswith(m + ".") for k in graph)]:
         graph[package] = {m for m in graph[package] if not m.startswith(package + ".")}
@@ -81,6 +90,20 @@ def test_the_cycle_check_finds_a_cycle(tmp_path):
     graph = import_graph(package)
     assert graph == {"pkg": set(), "pkg.a": {"pkg", "pkg.b"}, "pkg.b": {"pkg.a"}}
     assert import_cycles(graph)
+    # a folder installed under another name (solvers/ is wbc.solvers): absolute imports count
+    (package / "b.py").write_text("def f():\n    from wbc.solvers.a import x\n")
+    assert import_graph(package, "wbc.solvers")["wbc.solvers.b"] == {"wbc.solvers.a"}
+
+
+def test_solvers_import_in_one_direction():
+    """The paper modules take their linear algebra from ``linalg`` (and ``sns``), and
+    ``reference`` re-exports them all: no module of ``solvers/`` imports one that imports it
+    back."""
+    graph = import_graph(SOLVERS, "wbc.solvers")
+    papers = [m for m in graph if m.startswith("wbc.solvers.reference_")]
+    assert len(papers) == 5 and "wbc.solvers.linalg" in graph["wbc.solvers.reference_xing"]
+    assert set(papers) <= graph["wbc.solvers.reference"]
+    assert not import_cycles(graph), f"import cycles in solvers/: {import_cycles(graph)}"
 
 
 def test_import_wbc_loads_no_robot_solver_or_experiment():
