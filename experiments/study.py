@@ -16,7 +16,10 @@ Output contract (the same for every paper), written by :meth:`StudyResult.write`
     has ``holds: false`` and the reason in ``note``;
   - ``"runs"``: per scenario and method the raw series (at least ``"t"`` [s],
     ``"base_velocity"``, ``"ee_error"`` [m], plus what the claims are computed from);
-  - ``"timing"``: per backend ``{"tick_median_s", "tick_p95_s", "ticks"}``;
+  - ``"timing"``: per backend ``{"tick_median_s", "tick_p95_s", "ticks"}``, and
+    ``"console_lines"`` when the backend printed during the study (lines its library printed
+    while solving, kept off the terminal and counted by :mod:`wbc.solvers`; added by
+    :func:`study_main`);
   - ``"machine"``: :func:`wbc.experiments.machine.describe_machine`;
   - ``"parameters"`` and ``"summary"``: what the study chose, in words;
 
@@ -107,11 +110,12 @@ class StudyResult:
             lines.append(f"| {c.statement} (`{c.id}`) | {_cell(c.paper)} | {_cell(c.ours)} | "
                          f"{'yes' if c.holds else '**no**'} | {c.note} |")
         if self.timing:
-            lines += ["", "| backend | tick median [µs] | tick p95 [µs] | ticks |",
-                      "|---|---:|---:|---:|"]
+            lines += ["", "| backend | tick median [µs] | tick p95 [µs] | ticks | console lines |",
+                      "|---|---:|---:|---:|---:|"]
             for backend, t in self.timing.items():
                 lines.append(f"| {backend} | {1e6 * t['tick_median_s']:.1f} | "
-                             f"{1e6 * t['tick_p95_s']:.1f} | {t['ticks']} |")
+                             f"{1e6 * t['tick_p95_s']:.1f} | {t['ticks']} | "
+                             f"{t.get('console_lines', 0)} |")
         if self.summary_md:
             lines += ["", self.summary_md.strip()]
         if self.figures:
@@ -230,6 +234,10 @@ def study_main(name: str, run: Callable[[str, Path, bool], StudyResult],
                argv: Sequence[str] | None = None) -> int:
     """Command line of a study: ``wbc study NAME [--backend B] [--out DIR] [--quick]``.
 
+    Adds ``"console_lines"`` to the timing of each backend that printed during the run (what
+    every solve of that backend printed, the figures' runs included; see
+    :data:`wbc.solvers.base.CONSOLE_LINES`).
+
     Exit codes: 0 when the study ran (whatever its claims say), 1 when it failed, 2 for a bad
     argument.
     """
@@ -237,6 +245,7 @@ def study_main(name: str, run: Callable[[str, Path, bool], StudyResult],
 
     matplotlib.use("Agg")
     from wbc.solvers import available_backends
+    from wbc.solvers.base import CONSOLE_LINES
 
     parser = argparse.ArgumentParser(prog=f"wbc study {name}",
                                      description=f"Rerun the {name} paper study in simulation.")
@@ -252,7 +261,12 @@ def study_main(name: str, run: Callable[[str, Path, bool], StudyResult],
         parser.error(f"unknown or unavailable backend {args.backend!r}; available: "
                      f"{available_backends()}")
     started = time.perf_counter()
+    printed_before = dict(CONSOLE_LINES)
     result = run(args.backend, args.out / name, args.quick)
+    for backend, t in result.timing.items():
+        printed = CONSOLE_LINES.get(backend, 0) - printed_before.get(backend, 0)
+        if printed:
+            t["console_lines"] = printed
     folder = result.write(args.out)
     held = sum(c.holds for c in result.claims)
     print(f"{name}: {held}/{len(result.claims)} claims reproduced; "

@@ -36,6 +36,17 @@ conic always gets at least one row (an inert one when ``m = 0``). qpOASES prints
 whenever a solver memory is created (silenced here: it goes through Python's ``sys.stdout``).
 CasADi's qpOASES option ``enableDriftCorrection`` actually sets ``enableRegularisation`` (a CasADi
 bug), so it is not used.
+
+Console output: qpOASES prints its errors ("ERROR: Division by zero", "Failed to setup
+auxiliary QP for initialised homotopy", ...) through CasADi, which forwards them to Python's
+``sys.stdout``, on failed calls (often ones the retries then solve). ``printLevel="none"`` does
+not keep them quiet: qpOASES' message handler is global, and destroying any qpOASES solver (a
+restart after a failure, a dropped backend) makes every instance's errors visible again until
+the next one is created. So every solve of a CasADi plugin is captured at the Python level
+(≈1 µs per call, :class:`~wbc.solvers.base.ConsoleCapture`) and its lines counted, in the
+result's ``message`` and in ``console_lines``. CasADi's OSQP prints "Polishing not needed ..."
+from C, when ``polishing`` is on (not in the profiles): then file descriptors 1 and 2 are
+captured as well (≈14 µs per call).
 """
 
 from __future__ import annotations
@@ -45,7 +56,15 @@ import numpy as np
 from wbc.errors import BackendUnavailableError
 from wbc.qp import QPResult, Status
 
-from .base import BackendBase, empty_failure, empty_sides, failure, import_solver, silenced
+from .base import (
+    BackendBase,
+    ConsoleCapture,
+    empty_failure,
+    empty_sides,
+    failure,
+    import_solver,
+    silenced,
+)
 
 PLUGIN_PROFILES: dict[str, dict[str, dict]] = {
     # Without enableRegularisation qpOASES runs out of working-set recalculations on a singular
@@ -60,8 +79,9 @@ PLUGIN_PROFILES: dict[str, dict[str, dict]] = {
                   "epsRegularisation": 1e-10, "numRegularisationSteps": 2}
         for profile in ("default", "tight")
     },
-    # OSQP 1.0 bundled with CasADi. Its polishing prints "Polishing not needed ..." from C, which
-    # Python cannot silence, so tight does without: ≈1e-8 on the tests.
+    # OSQP 1.0 bundled with CasADi. Its polishing prints "Polishing not needed ..." from C (kept
+    # off the terminal only by capturing file descriptors, ≈14 µs per call), so tight does
+    # without: ≈1e-8 on the tests.
     "osqp": {
         "default": {"osqp": {"verbose": False, "eps_abs": 1e-5, "eps_rel": 1e-5}},
         "tight": {"osqp": {"verbose": False, "eps_abs": 1e-10, "eps_rel": 1e-10,
@@ -120,6 +140,9 @@ class CasadiConicBackend(BackendBase):
                 raise BackendUnavailableError(
                     f"QP backend {self.name!r}: CasADi has no loadable conic plugin {plugin!r}"
                 )
+        # CasADi forwards its plugins' output to Python; its OSQP polishes with C's printf
+        polishing = plugin == "osqp" and self.options.get("osqp", {}).get("polishing", False)
+        self._console = ConsoleCapture(fd=bool(polishing))
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
         n, m = self.n, self.m

@@ -12,7 +12,8 @@ bounds]`` already follows the sign convention of :mod:`wbc.qp`.
 Profiles: ``default`` (eps 1e-5, no polishing) is sized for control ticks; ``tight`` (eps 1e-10,
 polishing, up to 200 000 iterations) reaches ≈1e-14 on the tests, polishing making it exact once
 the active set is identified. Quirks (OSQP 1.1): with polishing on it prints "Polishing not
-needed ..." whatever ``verbose`` says (silenced here); ADMM stalls around 1e-3 on some random
+needed ..." through Python's ``sys.stdout`` whatever ``verbose`` says (captured and counted
+then, see :class:`~wbc.solvers.base.ConsoleCapture`); ADMM stalls around 1e-3 on some random
 vertex LPs (8 of 20 in the tests) whatever rho, sigma or scaling: use an active-set backend for
 LPs. The Python wrapper adds about 25 µs per tick (it clips ``l``/``u`` and builds an info
 namespace on every call).
@@ -24,13 +25,18 @@ there.
 
 from __future__ import annotations
 
-import contextlib
-
 import numpy as np
 
 from wbc.qp import QPResult, Status
 
-from .base import BackendBase, empty_failure, empty_sides, failure, import_solver, silenced
+from .base import (
+    BackendBase,
+    ConsoleCapture,
+    empty_failure,
+    empty_sides,
+    failure,
+    import_solver,
+)
 from .forms import StackedConstraints, UpperTriangle
 
 _STATUS = {  # "solved inaccurate" (tolerances missed by up to 10x) is a failure
@@ -55,8 +61,9 @@ class OsqpBackend(BackendBase):
     def __init__(self, profile: str = "default", **options):
         super().__init__(profile, **options)
         self._osqp = import_solver("osqp", self.name)
-        # OSQP prints "Polishing not needed ..." whatever its verbosity (≈3 µs to silence)
-        self._quiet = silenced if self.options.get("polishing") else contextlib.nullcontext
+        # OSQP prints "Polishing not needed ..." whatever its verbosity
+        if self.options.get("polishing"):
+            self._console = ConsoleCapture()
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
         n, m = self.n, self.m
@@ -95,8 +102,7 @@ class OsqpBackend(BackendBase):
             return empty_failure(self.name, n, m)
         if warm_start is not None:
             self._solver.warm_start(x=np.asarray(warm_start, dtype=float))
-        with self._quiet():
-            result = self._solver.solve(raise_error=False)
+        result = self._solver.solve(raise_error=False)
         info = result.info
         status = self._status.get(info.status_val, Status.NUMERICAL)
         if status is not Status.SOLVED:

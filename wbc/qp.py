@@ -55,7 +55,10 @@ class QPResult:
         z: multipliers of the bounds, shape ``(n,)``.
         iterations: iterations reported by the backend (``-1`` if unknown).
         message: the backend's own words on a failure (or a note on a solved QP, e.g. that
-            daqp solved it on its retry).
+            daqp solved it on its retry). When the solver library printed during the solve
+            (qpOASES' "ERROR: Division by zero ..." on a call its retry then solved, say),
+            the output was kept off the terminal and the message ends with
+            ``"<backend> printed <k> lines (kept off the console; the first: '<line>')"``.
     """
 
     x: np.ndarray
