@@ -30,6 +30,8 @@ COMMANDS = {
     "placo": ("wbc.experiments.vs_placo", "head-to-head with placo (C++) on the Panda"),
     "fuzz": ("wbc.experiments.fuzz", "fuzz campaign: bad stacks, data, states on every backend"),
     "audit": ("wbc.experiments.audit", "closed-loop limit audits: every robot, exact backends"),
+    "exactness": ("wbc.experiments.exactness", "every backend against an exact referee on "
+                  "random, saturating and strict-priority states"),
     "reproduce": ("wbc.experiments.reproduce", "every paper study, bench and peers in one "
                   "report (REPORT.md)"),
 }

@@ -26,6 +26,17 @@ Case families (drawn in proportion, all seeded from ``--seed``):
   when a C compiler is there, so the fused path is fuzzed as ``"daqp (fused)"`` — ticked on
   bad states and references: NaN in ``q``, ``q`` outside the limits, wrong lengths, unknown
   reference names, non-orthonormal target rotations, unreachable targets, NaN targets.
+* ``constructors``: one call of a public constructor or stack method (``wbc.Variables``,
+  ``Stack.parameter`` / ``add`` / ``constrain`` / ``set_mobility``, every task of
+  ``wbc.tasks`` — built, put in a fitting stack and compiled —, the robots' loaders
+  ``load`` / ``make_base`` / ``from_urdf`` / ``arm_from_urdf`` / ``arm_from_model``, and a
+  controller's ``set_references``) with valid arguments and then one or two of them replaced by
+  a bad value: NaN, ±inf, a wrong shape, an empty array, a ``str``, ``None``, a ``dict``, a
+  complex number, a negative number, a ``bool``, a CasADi symbol, a ragged list, an ``int``
+  beyond float's range, zero. Rule: a call that returns is a ``"success"`` (some of these values
+  are legal: ``name=None``, ``weight=0``), a :class:`~wbc.WbcError` an ``"error"``, and *any
+  other exception is a defect* — the calls pass their arguments by keyword, in the right
+  number, so not even a ``TypeError`` is excused. Its outcomes are the row ``"constructors"``.
 
 Outputs (``--out DIR``): ``DIR/fuzz.json`` with ``"cases"``, ``"outcomes"`` (counts per class
 and backend), ``"defects"`` (each with a reproducer: family, backend, seeds, injected defect,
@@ -41,11 +52,14 @@ import time
 import warnings
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 
 import wbc
 import wbc.robots
+import wbc.tasks as tasks
 from wbc.fused import FusedWorkspace
+from wbc.robots import arms
 from wbc.solvers import available_backends
 from wbc.solvers.base import silenced
 from wbc.tasks import (
@@ -57,10 +71,12 @@ from wbc.tasks import (
     PostureTask,
     VelocityLimit,
 )
+from wbc.tasks.manipulability import ManipulabilityTask
 
 from .arguments import constructible_backends
 
 HANG_S = 1.0  # a tick longer than this is a hang [s]
+CONSTRUCTOR_MIN = 40  # constructor calls per campaign at least (about one per constructor)
 BOUND_TOL = 1e-9  # allowed excursion out of a hard variable bound, relative to max(1, |b|)
 TICKS = 8  # ticks per structure and draw of a stack case family (each tick is a case)
 DEFECTS = ("none", "none", "nan", "inf", "shape", "crossed", "unknown", "zero_weight", "huge")
@@ -213,14 +229,14 @@ def stack_cases(backend: str, seed: int, structures: int, draws: int, fused: boo
 # robot family
 
 
-def robot_controller(robot, backend: str, dt: float = 0.01):
+def robot_controller(robot, backend: str, dt: float = 0.01, fused: bool | str = "auto"):
     """The velocity-level controller fuzzed on every robot (frame, posture, both limits)."""
     stack = wbc.Stack(wbc.Variables(v=robot.nv), damping=1e-3)
     stack.add(FrameTask(robot, "ee", gain=0.5, name="ee"))
     stack.add(PostureTask(robot, gain=0.5, weight=1e-2, name="posture"))
     stack.constrain(ConfigurationLimit(robot, name="q_limits"))
     stack.constrain(VelocityLimit(robot, name="v_limits"))
-    return wbc.Controller(robot, stack, dt=dt, backend=backend)
+    return wbc.Controller(robot, stack, dt=dt, backend=backend, fused=fused)
 
 
 def random_state(rng, robot, defect: str):
@@ -286,36 +302,265 @@ class _Commanded:
 
 
 # ---------------------------------------------------------------------------------------------
+# constructor family
+
+BAD_VALUES = ("nan", "inf", "shape", "empty", "str", "none", "dict", "complex", "negative",
+              "bool", "symbol", "ragged", "huge", "zero")
+
+
+def bad_value(rng: np.random.Generator, good, kind: str):
+    """A bad value of ``kind`` (:data:`BAD_VALUES`) in place of the valid argument ``good``."""
+    arr = None
+    if not isinstance(good, (bool, str)):
+        try:
+            arr = np.asarray(good, dtype=float)
+        except (TypeError, ValueError):
+            arr = None
+    if kind in ("nan", "inf"):
+        bad = np.nan if kind == "nan" else float(rng.choice([np.inf, -np.inf]))
+        if arr is None or arr.ndim == 0 or not arr.size:
+            return bad
+        arr = arr.copy()
+        arr.flat[int(rng.integers(arr.size))] = bad
+        return arr
+    if kind == "shape":
+        if arr is None or arr.ndim == 0 or rng.random() < 0.3:
+            return np.ones((int(rng.integers(1, 5)),) * int(rng.integers(1, 4)))
+        return np.ones(tuple(d + int(rng.integers(1, 3)) for d in arr.shape))
+    if kind == "empty":
+        return np.zeros((0,) * int(rng.integers(1, 3)))
+    if kind == "complex":
+        return (1.0 if arr is None else arr) * (1 + 1j)
+    if kind == "negative":
+        return -1.0 if arr is None else -np.abs(arr) - 1.0
+    if kind == "symbol":
+        return ca.SX.sym("s", int(rng.integers(1, 4)))
+    return {"str": "abc", "none": None, "dict": {"a": 1.0}, "bool": True,
+            "ragged": [[1.0, 2.0], [3.0]], "huge": 10 ** 400, "zero": 0}[kind]
+
+
+def _in_stack(build, variables, hard: bool = False):
+    """A call that builds a task, adds (or constrains) it in a stack over ``variables`` and
+    compiles the stack."""
+    def call(**kwargs):
+        stack = wbc.Stack(variables(), damping=1e-3)
+        task = build(**kwargs)
+        (stack.constrain if hard else stack.add)(task)
+        stack.compile()
+    return call
+
+
+def constructor_specs() -> dict:
+    """``name -> (call, valid_kwargs(rng))`` of every constructor the family fuzzes."""
+    robot = wbc.robots.load("omni4_arm6")
+    nv, n = robot.nv, 4
+    ur5 = wbc.robots.urdf_path("ur_description/urdf/ur5_robot.urdf")
+    ur5_model = arms.load_urdf_model(ur5)
+    ctrl = robot_controller(robot, "daqp", fused=False)
+    target = robot.frame_pose(robot.neutral(), "ee").copy()
+
+    def on(n_x=n):
+        return lambda: wbc.Variables(x=n_x)
+
+    def velocities():
+        return wbc.Variables(v=nv)
+
+    def stack_method(method):
+        def call(**kwargs):
+            stack = wbc.Stack(3)
+            getattr(stack, method)(**kwargs)
+            if method in ("add", "constrain"):
+                stack.compile()
+        return call
+
+    def wheel_jacobian(rng):
+        return rng.standard_normal((4, 3))
+
+    field = {"l0": 0.333, "l1": 0.328, "l2": 0.394, "b_d": 0.27, "k_f": 2.0, "k_r": 2.0,
+             "k_omega": 1.0, "delta_f": 0.15, "delta_r": 0.15, "phi_min": 0.5, "phi_max": 0.8,
+             "phi_t": 0.5, "epsilon": 0.05, "v_max": 1.0, "omega_max": 1.0, "alpha": 0.25,
+             "dv_max": 1.0, "domega_max": 1.0}
+
+    def rate_limit_level(**kwargs):
+        stack = wbc.Stack(wbc.Variables(u=2))
+        tasks.VelocityField().rate_limit_level(stack, **kwargs)
+        stack.compile()
+
+    def share(**kwargs):
+        stack = wbc.Stack(wbc.Variables(base=3, arm=2))
+        stack.add(tasks.LinearTask(np.eye(5), np.ones(5), name="t"))
+        tasks.share_task(stack, **kwargs)
+        stack.compile()
+
+    return {
+        "Variables": (lambda **kw: wbc.Variables(**kw), lambda rng: {"blocks": {"a": 2, "b": 3}}),
+        "Stack.parameter": (stack_method("parameter"), lambda rng: {
+            "name": "p", "shape": (2, 3), "default": rng.standard_normal((2, 3)),
+            "allow_inf": False}),
+        "Stack.add": (stack_method("add"), lambda rng: {
+            "task": tasks.LinearTask(np.eye(3), rng.standard_normal(3), name="t"),
+            "priority": 0, "weight": 1.0, "scaling": False}),
+        "Stack.constrain": (stack_method("constrain"), lambda rng: {
+            "task": tasks.Bounds(-1.0, 1.0, name="b"), "levels": None}),
+        "Stack.set_mobility": (stack_method("set_mobility"), lambda rng: {
+            "mobility": rng.uniform(0.1, 1.0, 3), "levels": None}),
+        "LinearTask": (_in_stack(tasks.LinearTask, on()), lambda rng: {
+            "A": rng.standard_normal((3, n)), "b": rng.standard_normal(3),
+            "weight": 1.0, "name": "t", "block": None}),
+        "LinearConstraint": (_in_stack(tasks.LinearConstraint, on(), hard=True), lambda rng: {
+            "C": rng.standard_normal((2, n)), "lower": -np.ones(2), "upper": np.ones(2),
+            "name": "c", "block": None}),
+        "Bounds": (_in_stack(tasks.Bounds, on(), hard=True), lambda rng: {
+            "lower": -np.ones(n), "upper": np.ones(n), "name": "b", "block": None}),
+        "FrameTask": (_in_stack(tasks.FrameTask, velocities), lambda rng: {
+            "robot": robot, "frame": "ee", "gain": 0.5, "weight": np.ones(6),
+            "position_only": False, "lm_damping": 0.1, "name": "ee", "block": None}),
+        "PostureTask": (_in_stack(tasks.PostureTask, velocities), lambda rng: {
+            "robot": robot, "gain": 0.5, "weight": 1.0, "lm_damping": 0.0, "name": "posture",
+            "joints": None, "block": None}),
+        "ConfigurationLimit": (_in_stack(tasks.ConfigurationLimit, velocities, hard=True),
+                               lambda rng: {"robot": robot, "gain": 0.5, "name": "q",
+                                            "joints": None, "block": None}),
+        "VelocityLimit": (_in_stack(tasks.VelocityLimit, velocities, hard=True), lambda rng: {
+            "robot": robot, "scale": 1.0, "name": "v", "block": None}),
+        "RpyPoseTask": (_in_stack(tasks.RpyPoseTask, velocities), lambda rng: {
+            "robot": robot, "frame": "ee", "gain": 1.7, "name": "rpy", "block": None}),
+        "JointAccelerationLimit": (_in_stack(tasks.JointAccelerationLimit, velocities,
+                                             hard=True), lambda rng: {
+            "robot": robot, "dt": 0.01, "method": "viable", "name": "a", "joints": None,
+            "block": None}),
+        "ManipulabilityTask": (_in_stack(ManipulabilityTask, velocities),
+                               lambda rng: {"robot": robot, "frame": "ee", "gamma1": 5.0,
+                                            "gamma2": 0.5, "name": "m", "joints": None,
+                                            "block": None}),
+        "DexterousPosture": (_in_stack(tasks.DexterousPosture, velocities), lambda rng: {
+            "robot": robot, "q_dex": rng.uniform(-1, 1, 6), "gain": 3.5, "name": "dex",
+            "block": None}),
+        "WheelWrench": (_in_stack(tasks.WheelWrench, lambda: wbc.Variables(tau=4), hard=True),
+                        lambda rng: {"J": wheel_jacobian(rng), "name": "wrench",
+                                     "block": "tau"}),
+        "FrictionUtilisation": (_in_stack(tasks.FrictionUtilisation,
+                                          lambda: wbc.Variables(tau=4)), lambda rng: {
+            "n_wheels": 4, "mu": 0.5, "name": "friction", "parameters": "friction",
+            "block": "tau"}),
+        "UtilisationBound": (_in_stack(tasks.UtilisationBound,
+                                       lambda: wbc.Variables(tau=4, t=1), hard=True),
+                             lambda rng: {"n_wheels": 4, "mu": 0.5, "name": "u",
+                                          "parameters": "friction", "block": "tau",
+                                          "bound": "t"}),
+        "distribution_stack": (tasks.distribution_stack, lambda rng: {
+            "J": wheel_jacobian(rng), "method": "minmax", "mu": 0.5}),
+        "TorqueDistribution": (tasks.TorqueDistribution, lambda rng: {
+            "J": wheel_jacobian(rng), "method": "proportional", "mu": 0.5, "backend": "daqp",
+            "profile": "default"}),
+        "VelocityField": (tasks.VelocityField, lambda rng: dict(field)),
+        "VelocityField.rate_limit_level": (rate_limit_level, lambda rng: {
+            "priority": 0, "block": None, "name": "rate"}),
+        "joint_acceleration_bounds": (tasks.joint_acceleration_bounds, lambda rng: {
+            "q": rng.uniform(-0.5, 0.5, 3), "qd": np.zeros(3), "q_min": -1.0, "q_max": 1.0,
+            "v_min": -1.0, "v_max": 1.0, "a_min": -2.0, "a_max": 2.0, "dt": 0.01,
+            "method": "xing"}),
+        "sharing_factor": (tasks.sharing_factor, lambda rng: {
+            "error_norm": ca.SX.sym("e"), "r_fm": 0.25, "r_mm": 0.9}),
+        "share_task": (share, lambda rng: {"psi": 0.5, "n_base": 3, "priority": 0}),
+        "ArmCompensation": (tasks.ArmCompensation, lambda rng: {
+            "n_arm": 3, "rows": 6, "backend": "daqp", "profile": "default"}),
+        "robots.load": (wbc.robots.load, lambda rng: {"name": "omni4_arm6"}),
+        "robots.make_base": (wbc.robots.make_base, lambda rng: {"name": "mecanum"}),
+        "robots.from_urdf": (wbc.robots.from_urdf, lambda rng: {
+            "urdf": ur5, "base": "omni", "ee_frame": "tool0", "mount": np.eye(4),
+            "name": "r", "locked_joints": (), "v_max": np.ones(6), "a_max": np.ones(6),
+            "home": np.zeros(6)}),
+        "arms.arm_from_urdf": (arms.arm_from_urdf, lambda rng: {
+            "path": ur5, "ee_frame": "tool0", "name": "ur5", "locked_joints": (),
+            "locked_values": None, "v_max": np.ones(6), "a_max": np.ones(6),
+            "home": np.zeros(6)}),
+        "arms.arm_from_model": (arms.arm_from_model, lambda rng: {
+            "model": ur5_model, "ee_frame": "tool0", "name": "ur5", "v_max": np.ones(6),
+            "a_max": np.ones(6), "home": np.zeros(6)}),
+        "Controller.set_references": (ctrl.set_references, lambda rng: {
+            "ee": target.copy(), "posture": robot.neutral()}),
+    }
+
+
+def constructor_cases(seed: int, count: int):
+    """Yield ``(case, class, defect, message)`` of the constructor family: ``count`` calls,
+    round-robin over :func:`constructor_specs`, each with one or two arguments replaced by a
+    bad value (one call in ten keeps its valid arguments)."""
+    specs = constructor_specs()
+    names = list(specs)
+    rng = np.random.default_rng([seed, 2000])
+    for k in range(count):
+        name = names[k % len(names)]
+        call, valid = specs[name]
+        kwargs = valid(rng)
+        injected = {}
+        if rng.random() >= 0.1:
+            for argument in rng.choice(list(kwargs), size=min(len(kwargs), int(
+                    rng.integers(1, 3))), replace=False):
+                kind = str(rng.choice(BAD_VALUES))
+                kwargs[str(argument)] = bad_value(rng, kwargs[str(argument)], kind)
+                injected[str(argument)] = kind
+        outcome, defect, message = classify_call(call, kwargs)
+        case = {"family": "constructors", "backend": "constructors", "seed": seed,
+                "constructor": name, "call": k,
+                "injected": ", ".join(f"{a}={v}" for a, v in injected.items()) or "none"}
+        yield case, outcome, defect, message
+
+
+def classify_call(call, kwargs: dict) -> tuple[str, str | None, str]:
+    """Class one constructor call ``call(**kwargs)``: ``"success"``, ``"error"`` (a
+    :class:`~wbc.WbcError`) or a ``"defect"`` (any other exception)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            call(**kwargs)
+    except wbc.WbcError as exc:
+        return "error", None, f"{type(exc).__name__}: {exc}"
+    except Exception as exc:  # what the family looks for
+        return "defect", "exception", f"{type(exc).__name__}: {exc}"
+    return "success", None, "built"
+
+
+# ---------------------------------------------------------------------------------------------
 
 
 def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | None = None):
-    """Run about ``cases`` cases spread over ``backends`` (a sixth of them robot ticks);
-    stops early after ``seconds`` [s]. Returns the JSON-ready result."""
-    per_backend = -(-cases // len(backends))  # rounded up: at least ``cases`` in all
+    """Run about ``cases`` cases: a twentieth of them (at least one per constructor)
+    constructor calls, the rest spread over ``backends`` (a sixth of them robot ticks); stops
+    early after ``seconds`` [s]. Returns the JSON-ready result."""
+    constructor_calls = max(CONSTRUCTOR_MIN, cases // 20)
+    per_backend = -(-(cases - constructor_calls) // len(backends))  # rounded up
+    per_backend = max(per_backend, 1)
     robot_ticks = max(1, per_backend // 6 // len(wbc.robots.names()))
     stack_ticks = per_backend - robot_ticks * len(wbc.robots.names())
     draws = 2
     structures = max(1, -(-stack_ticks // (draws * TICKS)))
     outcomes: dict[str, dict[str, int]] = {}
     defects: list[dict] = []
+    families_count: dict[str, int] = {}
     total, start = 0, time.perf_counter()
-    for backend in backends:
+    for i, backend in enumerate(backends):
         if seconds is not None and time.perf_counter() - start > seconds:
             break
         families = [stack_cases(backend, seed, structures, draws),
                     robot_cases(backend, seed, robot_ticks)]
         if backend == "daqp":  # the fused cascade too (the robots' controllers take it anyway)
             families.append(stack_cases(backend, seed, structures, draws, fused=True))
+        if i == 0:  # constructors do not depend on the backend: once
+            families.insert(0, constructor_cases(seed, constructor_calls))
         for case, outcome, defect, message in _chain(*families):
             counts = outcomes.setdefault(case["backend"], {"error": 0, "failure": 0,
                                                            "success": 0, "defect": 0})
             counts[outcome] += 1
+            families_count[case["family"]] = families_count.get(case["family"], 0) + 1
             total += 1
             if defect:
                 defects.append({**case, "defect": defect, "message": message[:500]})
             if seconds is not None and time.perf_counter() - start > seconds:
                 break
-    return {"cases": total, "outcomes": outcomes, "defects": defects,
+    return {"cases": total, "families": families_count, "outcomes": outcomes,
+            "defects": defects,
             "parameters": {"seed": seed, "backends": backends, "hang_s": HANG_S,
                            "bound_tol": BOUND_TOL, "ticks_per_draw": TICKS,
                            "wall_s": round(time.perf_counter() - start, 1)}}
@@ -328,7 +573,10 @@ def _chain(*generators):
 
 def markdown(result: dict) -> str:
     """The outcome table (rows: backends) and the defects."""
+    families = ", ".join(f"{k} {v}" for k, v in result.get("families", {}).items())
     lines = [f"# wbc fuzz: {result['cases']} cases, {len(result['defects'])} defects", "",
+             *([f"Cases per family: {families} (the row `constructors` is that family: "
+                "no solver).", ""] if families else []),
              "| backend | clean error | failure status | success | defect |",
              "|---|---|---|---|---|"]
     for backend, c in result["outcomes"].items():

@@ -9,6 +9,13 @@ acceleration limits. Arms come from URDF files (:func:`arm_from_urdf`, :func:`pa
 
 URDF ``continuous`` joints, which pinocchio parses as unbounded revolute joints with a
 (cos, sin) configuration, are converted to plain revolute joints with infinite position limits.
+
+Frame names. A URDF may give a link and a joint the same name (pinocchio then holds two frames
+of that name, a ``BODY`` and a ``JOINT``/``FIXED_JOINT`` one, and refuses to look either up by
+name). Such frames are renamed ``"link:<name>"`` and ``"joint:<name>"`` (``"frame:<name>"`` for
+operational frames, ``"sensor:<name>"``) when the arm is built: pick the end effector with
+``ee_frame="link:tool0"``; the bare ambiguous name is an :class:`~wbc.UnknownNameError` that
+lists the candidates with their types. Unambiguous names are kept as they are.
 """
 
 from __future__ import annotations
@@ -22,12 +29,18 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from wbc.errors import ModelLoadError, ShapeError, UnknownNameError
+from wbc.checks import as_float_array, check_finite, checked_name
+from wbc.errors import InvalidValueError, ModelLoadError, ShapeError, UnknownNameError
 
 from .resources import urdf_path
 
 __all__ = ["Arm", "arm_from_model", "arm_from_urdf", "build_serial_arm", "load_urdf_model",
-           "panda", "ur10", "ur5"]
+           "panda", "ur10", "ur5", "FRAME_KINDS"]
+
+#: the prefix of a renamed ambiguous frame, by pinocchio frame type (see the module docstring)
+FRAME_KINDS = {pin.FrameType.BODY: "link", pin.FrameType.JOINT: "joint",
+               pin.FrameType.FIXED_JOINT: "joint", pin.FrameType.OP_FRAME: "frame",
+               pin.FrameType.SENSOR: "sensor"}
 
 
 @dataclass
@@ -56,6 +69,11 @@ class Arm:
     source: str = field(default="")
 
     def __post_init__(self) -> None:
+        checked_name(self.name, "name of an arm", optional=False)
+        if not isinstance(self.model, pin.Model):
+            raise InvalidValueError(f"arm {self.name!r}: model must be a pinocchio Model, got "
+                                    f"{type(self.model).__name__}")
+        checked_name(self.ee_frame, f"ee_frame of arm {self.name!r}", optional=False)
         n = self.model.nv
         if self.model.nq != n:
             raise ShapeError(
@@ -63,17 +81,28 @@ class Arm:
                 f"{self.model.nq}, nv {n}"
             )
         for attr in ("q_lower", "q_upper", "v_max", "a_max", "home"):
-            value = np.array(getattr(self, attr), dtype=float)
+            what = f"arm {self.name!r}: {attr}"
+            value = np.array(as_float_array(getattr(self, attr), what), dtype=float)
             if value.shape != (n,):
-                raise ShapeError(
-                    f"arm {self.name!r}: {attr} must have shape ({n},), got {value.shape}"
-                )
+                raise ShapeError(f"{what} must have shape ({n},), got {value.shape}")
+            check_finite(value, what, allow_inf=attr != "home")
             setattr(self, attr, value)
-        if not self.model.existFrame(self.ee_frame):
+        for attr in ("v_max", "a_max"):
+            if (getattr(self, attr) <= 0).any():
+                raise InvalidValueError(f"arm {self.name!r}: {attr} must be > 0, got "
+                                        f"{getattr(self, attr)}")
+        if (self.q_lower > self.q_upper).any():
+            raise InvalidValueError(f"arm {self.name!r}: q_lower > q_upper at joints "
+                                    f"{np.flatnonzero(self.q_lower > self.q_upper).tolist()}")
+        frames = [f.name for f in self.model.frames]
+        if frames.count(self.ee_frame) != 1:
+            candidates = [f"{name!r} ({self.model.frames[i].type})"
+                          for i, name in enumerate(frames) if name.partition(":")[2]
+                          == self.ee_frame or (name == self.ee_frame)]
             raise UnknownNameError(
-                f"arm {self.name!r} has no frame {self.ee_frame!r}; frames: "
-                f"{[f.name for f in self.model.frames]}"
-            )
+                f"arm {self.name!r}: ee_frame {self.ee_frame!r} "
+                + (f"is ambiguous; pick one of {', '.join(candidates)}" if candidates else
+                   f"is not a frame; frames: {frames}"))
 
     @property
     def n(self) -> int:
@@ -147,6 +176,25 @@ def _with_scalar_joints(model: pin.Model) -> tuple[pin.Model, np.ndarray]:
     return out, np.array(unbounded, dtype=bool)
 
 
+def _unambiguous_frames(model: pin.Model) -> pin.Model:
+    """``model``, or a copy whose frames sharing a name are renamed ``"<kind>:<name>"``
+    (:data:`FRAME_KINDS`, see the module docstring)."""
+    names = [frame.name for frame in model.frames]
+    shared = {name for name in names if names.count(name) > 1}
+    if not shared:
+        return model
+    model = pin.Model(model)
+    for index, frame in enumerate(model.frames):
+        if frame.name in shared:
+            frame.name = f"{FRAME_KINDS.get(frame.type, 'frame')}:{frame.name}"
+            model.frames[index] = frame
+    names = [frame.name for frame in model.frames]
+    clashes = sorted({name for name in names if names.count(name) > 1})
+    if clashes:
+        raise ModelLoadError(f"model {model.name!r}: frames {clashes} share a name and a type")
+    return model
+
+
 def load_urdf_model(path: str) -> pin.Model:
     """``pin.buildModelFromUrdf(path)``, or one :class:`~wbc.ModelLoadError` naming the file
     and the parser's reason. urdfdom writes its reasons to the C-level stderr (file
@@ -193,7 +241,8 @@ def arm_from_urdf(
         path: the URDF file.
         ee_frame: name of the end-effector frame (a link or joint name of the URDF).
         name: arm name (default: the URDF's robot name).
-        locked_joints: joints to remove (e.g. gripper fingers), held at ``locked_values``
+        locked_joints: joints to remove (a list or tuple of names, e.g. gripper fingers), held at
+            ``locked_values``
             (default: their neutral value).
         v_max: velocity limits, shape (n,) (default: the URDF's ``velocity`` attributes;
             ``inf`` where missing).
@@ -204,7 +253,20 @@ def arm_from_urdf(
     Returns:
         The :class:`Arm`.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InvalidValueError(f"path of a URDF must be a str or a path, got {path!r}"[:120])
     path = os.fspath(path)
+    checked_name(ee_frame, "ee_frame", optional=False)
+    if not isinstance(locked_joints, (list, tuple)) or not all(isinstance(j, str)
+                                                                for j in locked_joints):
+        raise InvalidValueError(f"locked_joints must be a sequence of joint names, got "
+                                f"{locked_joints!r}")
+    if locked_values is not None:
+        locked_values = as_float_array(locked_values, "locked_values")
+        if locked_values.shape != (len(locked_joints),):
+            raise ShapeError(f"locked_values must have one value per locked joint "
+                             f"({len(locked_joints)}), got shape {locked_values.shape}")
+        check_finite(locked_values, "locked_values")
     model = load_urdf_model(path)
     if locked_joints:
         missing = [j for j in locked_joints if not model.existJointName(j)]
@@ -246,7 +308,15 @@ def arm_from_model(
     model's (``±inf`` where pinocchio holds its "no limit" value), no acceleration limit, and the
     neutral configuration clipped into the limits as home.
     """
+    if not isinstance(model, pin.Model):
+        raise InvalidValueError(f"model must be a pinocchio Model, got {type(model).__name__}")
+    checked_name(name, "name of an arm")
+    checked_name(ee_frame, "ee_frame", optional=False)
+    v_max, a_max, home = (None if value is None else as_float_array(value, label)
+                          for label, value in (("v_max", v_max), ("a_max", a_max),
+                                               ("home", home)))
     model, unbounded = _with_scalar_joints(model)
+    model = _unambiguous_frames(model)
     q_lower = model.lowerPositionLimit.copy()
     q_upper = model.upperPositionLimit.copy()
     # continuous joints and pinocchio's ±max double "no limit" become ±inf

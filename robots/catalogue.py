@@ -30,7 +30,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pinocchio as pin
 
-from wbc.errors import UnknownNameError
+from wbc.checks import as_float_array, checked_name
+from wbc.errors import InvalidValueError, UnknownNameError
 
 from .arms import Arm, arm_from_urdf, panda, ur10
 from .differential import tiago_base
@@ -102,8 +103,8 @@ def load(name: str) -> MobileManipulator:
         UnknownNameError: ``name`` is not in the catalogue (the message lists it).
     """
     try:
-        factory = _CATALOGUE[name]
-    except (KeyError, TypeError):
+        factory = _CATALOGUE[checked_name(name, "robot name", optional=False)]
+    except (KeyError, InvalidValueError):
         raise UnknownNameError(f"unknown robot {name!r}; the catalogue has {names()}") from None
     return factory()
 
@@ -117,9 +118,10 @@ def make_base(name: str) -> PlanarBase:
     """A base model by name: ``"steerable"``/``"mpo700"``, ``"differential"``/``"tiago"``,
     ``"omni"``/``"omni4"``, ``"mecanum"``."""
     try:
-        return _BASES[name]()
-    except (KeyError, TypeError):
+        factory = _BASES[checked_name(name, "base name", optional=False)]
+    except (KeyError, InvalidValueError):
         raise UnknownNameError(f"unknown base {name!r}; bases: {base_names()}") from None
+    return factory()
 
 
 def from_urdf(
@@ -139,7 +141,9 @@ def from_urdf(
     Args:
         urdf: path of the arm's URDF (or an already built :class:`~wbc.robots.arms.Arm`).
         base: a base name (see :func:`base_names`) or a base model.
-        ee_frame: the URDF frame (link or joint name) used as ``"ee"``.
+        ee_frame: the URDF frame (link or joint name) used as ``"ee"``; when a link and a joint
+            share the name, ``"link:<name>"`` or ``"joint:<name>"`` (see
+            :mod:`wbc.robots.arms`).
         mount: pose of the arm's root in the base frame (SE3 or 4 × 4; default identity).
         name: robot name.
         locked_joints: URDF joints to remove (e.g. gripper fingers).
@@ -157,12 +161,20 @@ def from_urdf(
                                  base="omni", ee_frame="tool0", mount=mount)
         robot.frame_pose(robot.neutral(), "ee")
     """
+    if not isinstance(base, (str, PlanarBase)):
+        raise InvalidValueError(f"base must be a base name ({base_names()}) or a PlanarBase, "
+                                f"got {base!r}"[:160])
     base_model = make_base(base) if isinstance(base, str) else base
+    checked_name(name, "name")
+    checked_name(ee_frame, "ee_frame")
+    if mount is not None and not isinstance(mount, pin.SE3):
+        mount = as_float_array(mount, "mount")
     if isinstance(urdf, Arm):
         arm = urdf
     else:
         if ee_frame is None:
-            raise ValueError("ee_frame is required: name the URDF frame to use as the end effector")
+            raise InvalidValueError("ee_frame is required: name the URDF frame to use as the "
+                                    "end effector")
         arm = arm_from_urdf(
             urdf, ee_frame, locked_joints=locked_joints, v_max=v_max, a_max=a_max, home=home
         )

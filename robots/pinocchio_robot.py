@@ -74,6 +74,7 @@ import pinocchio as pin
 from wbc.errors import NonFiniteError, ShapeError, UnknownNameError
 
 from . import manipulability as _manipulability
+from .arms import FRAME_KINDS
 from .limits import Limits
 from .model_quantities import register_quantities
 from .planar_base import HOLONOMIC_MAP, UNICYCLE_MAP, PlanarBase
@@ -109,6 +110,10 @@ class PinocchioRobot:
         base: the planar base model, ``None`` for a fixed base.
         aliases: extra frame names, ``alias -> model frame name``.
 
+    Frames several of which share a name (a URDF link and joint of the same name) are known
+    only as ``"<kind>:<name>"`` (``"link:tool0"``, ``"joint:tool0"``, see
+    :mod:`wbc.robots.arms`); the bare name raises :class:`~wbc.UnknownNameError` listing them.
+
     Raises:
         WbcError: a joint type is not supported.
         UnknownNameError: an alias names no frame.
@@ -131,8 +136,16 @@ class PinocchioRobot:
             raise ShapeError(f"robot {name!r}: limits of sizes nq = {limits.nq}, nv = "
                              f"{limits.nv}, expected {self.nq} and {self.nv}")
         self._frame_ids: dict[str, int] = {}
+        names = [frame.name for frame in model.frames]
+        # a name several frames share (a URDF link and joint) is refused, its frames are
+        # "<kind>:<name>" (as wbc.robots.arms renames them)
+        self._ambiguous = {name for name in names if names.count(name) > 1}
         for index, frame in enumerate(model.frames):
-            self._frame_ids.setdefault(frame.name, index)
+            if frame.name in self._ambiguous:
+                kind = FRAME_KINDS.get(frame.type, "frame")
+                self._frame_ids.setdefault(f"{kind}:{frame.name}", index)
+            else:
+                self._frame_ids[frame.name] = index
         for alias, target in (aliases or {}).items():
             self._frame_ids[alias] = self.frame_id(target)
         base_names = "x, y, theta, " if base is not None else ""
@@ -213,6 +226,11 @@ class PinocchioRobot:
             try:
                 return self._frame_ids[frame]
             except KeyError:
+                if frame in self._ambiguous:
+                    raise UnknownNameError(
+                        f"robot {self.name!r}: frame name {frame!r} is ambiguous; pick one of "
+                        f"{[name for name in self._frame_ids if name.partition(':')[2] == frame]}"
+                    ) from None
                 raise UnknownNameError(
                     f"robot {self.name!r} has no frame {frame!r}; frames: {self.frame_names}"
                 ) from None

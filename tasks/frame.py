@@ -38,6 +38,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from wbc.checks import check_robot, checked_name, checked_number, checked_weights
 from wbc.controller import check_frame
 from wbc.errors import InvalidValueError, ShapeError
 from wbc.terms import Cost, Task
@@ -211,26 +212,11 @@ def pose_error_world_jacobian(pose, target, J) -> tuple[ca.SX, ca.SX]:
 
 
 # ---------------------------------------------------------------------------- the task
-def _weights(weight, rows: int, what: str) -> np.ndarray | float:
-    arr = np.asarray(weight, dtype=float)
-    if arr.ndim == 0:
-        value = float(arr)
-        if not np.isfinite(value) or value < 0:
-            raise InvalidValueError(f"{what}: weight must be a finite number >= 0, got {weight!r}")
-        return value
-    if arr.shape != (rows,):
-        raise ShapeError(f"{what}: weight must be a scalar or have shape ({rows},), "
-                         f"got {arr.shape}")
-    if not np.isfinite(arr).all() or (arr < 0).any():
-        raise InvalidValueError(f"{what}: weights must be finite and >= 0, got {arr}")
-    return arr
-
-
-def _check_gain(gain, what: str) -> float:
-    gain = float(gain)
-    if not np.isfinite(gain) or gain < 0:
-        raise InvalidValueError(f"{what}: gain must be a finite number >= 0, got {gain!r}")
-    return gain
+def weight_root(weight) -> ca.SX | ca.DM | float:
+    """``√w`` of a weight checked by :func:`wbc.checks.checked_weights`, for CasADi products."""
+    if isinstance(weight, ca.SX):
+        return ca.sqrt(weight)
+    return ca.DM(np.sqrt(weight)) if np.ndim(weight) else float(np.sqrt(weight))
 
 
 def velocity_block(stack, block: str | None, nv: int, what: str) -> ca.SX:
@@ -250,9 +236,10 @@ class FrameTask(Task):
     Args:
         robot: the robot (for ``nv`` and the frame name check); see :class:`wbc.Controller`.
         frame: frame name as the robot knows it (e.g. ``"ee"``).
-        gain: task gain ``α`` [-]: the cost asks for ``α · e / dt`` per tick (1 = dead-beat).
-        weight: ``w`` (scalar or one per row: 6 for a pose, 3 for a position); equals pink's
-            ``cost²``.
+        gain: task gain ``α >= 0`` [-]: the cost asks for ``α · e / dt`` per tick (1 = dead-beat).
+        weight: ``w`` (scalar or one per row: 6 for a pose, 3 for a position; ``>= 0``, or a
+            CasADi SX expression of the stack's parameters, see
+            :func:`wbc.checks.checked_weights`); equals pink's ``cost²``.
         position_only: track the position only (3 rows, world axes).
         lm_damping: pink's Levenberg–Marquardt damping: adds ``μ/2 ||v||²`` with
             ``μ = lm_damping · Σ w_i (α e_i)²`` (0: no rows added).
@@ -267,16 +254,20 @@ class FrameTask(Task):
     def __init__(self, robot, frame: str, gain: float = 1.0, weight=1.0,
                  position_only: bool = False, lm_damping: float = 0.0,
                  name: str | None = None, block: str | None = None) -> None:
-        check_frame(robot, frame, f"FrameTask {name or frame!r}")
-        self.nv = int(robot.nv)
-        self.frame = frame
-        self.gain = _check_gain(gain, f"FrameTask {name or frame!r}")
+        self.name = checked_name(name, "name of a FrameTask")
+        self.frame = checked_name(frame, f"frame of FrameTask {name!r}", optional=False)
+        what = f"FrameTask {name or frame!r}"
+        self.nv = check_robot(robot, f"robot of {what}")[1]
+        check_frame(robot, frame, what)
+        self.gain = checked_number(gain, f"gain of {what}")
+        if not isinstance(position_only, (bool, np.bool_)):
+            raise InvalidValueError(f"position_only of {what} must be True or False, got "
+                                    f"{position_only!r}")
         self.position_only = bool(position_only)
         self.rows = 3 if self.position_only else 6
-        self.weight = _weights(weight, self.rows, f"FrameTask {name or frame!r}")
-        self.lm_damping = _check_gain(lm_damping, f"FrameTask {name or frame!r} (lm_damping)")
-        self.name = name
-        self.block = block
+        self.weight = checked_weights(weight, self.rows, f"weight of {what}")
+        self.lm_damping = checked_number(lm_damping, f"lm_damping of {what}")
+        self.block = checked_name(block, f"block of {what}")
         self.error: ca.SX | None = None  # symbolic error and Jacobian, set by terms()
         self.jacobian: ca.SX | None = None
 
@@ -293,11 +284,12 @@ class FrameTask(Task):
         else:
             e, J_e = pose_error_world_jacobian(pose, target, J)
         self.error, self.jacobian = e, J_e
-        terms = [Cost(J_e @ v, self.gain / dt * e, self.weight, self.name)]
+        # reported residual: the error the command leaves, to first order, in m and rad
+        # (0 when the row holds; e itself when nothing moves towards the target)
+        residual = e - dt / self.gain * (J_e @ v) if self.gain > 0 else None
+        terms = [Cost(J_e @ v, self.gain / dt * e, self.weight, self.name, residual)]
         if self.lm_damping > 0:
-            root = np.sqrt(self.weight)
-            root = ca.DM(root) if np.ndim(root) else float(root)
-            mu = self.lm_damping * ca.sumsqr(root * self.gain * e)
+            mu = self.lm_damping * ca.sumsqr(weight_root(self.weight) * self.gain * e)
             terms.append(Cost(v, 0.0, mu, f"{self.name} (lm damping)"))
         return terms
 

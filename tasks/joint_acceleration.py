@@ -56,6 +56,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from wbc.checks import as_float_array, check_robot, checked_name, checked_number
 from wbc.errors import InvalidValueError, NonFiniteError, ShapeError, WbcError
 from wbc.terms import Task, VariableBounds
 
@@ -114,15 +115,8 @@ def _bounds(ops: _Ops, q, qd, q_min, q_max, v_min, v_max, a_min, a_max, T, metho
 
 
 def _check_method(method: str, what: str) -> None:
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:
         raise InvalidValueError(f"{what}: method must be one of {list(METHODS)}, got {method!r}")
-
-
-def _check_period(dt, what: str) -> float:
-    dt = float(dt)
-    if not np.isfinite(dt) or dt <= 0:
-        raise InvalidValueError(f"{what}: dt must be a finite number > 0 [s], got {dt!r}")
-    return dt
 
 
 def _check_limits(q_min, q_max, v_min, v_max, a_min, a_max, what: str) -> None:
@@ -164,10 +158,13 @@ def joint_acceleration_bounds(q, qd, q_min, q_max, v_min, v_max, a_min, a_max, d
     """
     what = "joint_acceleration_bounds"
     _check_method(method, what)
-    T = _check_period(dt, what)
+    T = checked_number(dt, f"{what}: dt [s]", 0.0, strict=True)
+    names = ("q", "qd", "q_min", "q_max", "v_min", "v_max", "a_min", "a_max")
+    values = (q, qd, q_min, q_max, v_min, v_max, a_min, a_max)
+    arrays = [as_float_array(value, f"{label} of {what}")
+              for label, value in zip(names, values, strict=True)]
     try:
-        arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
-                                       (q, qd, q_min, q_max, v_min, v_max, a_min, a_max)))
+        arrays = np.broadcast_arrays(*arrays)
     except ValueError as error:
         raise ShapeError(f"{what}: the arrays do not broadcast ({error})") from None
     q, qd, q_min, q_max, v_min, v_max, a_min, a_max = arrays
@@ -206,9 +203,9 @@ class JointAccelerationLimit(Task):
                  joints: int | None = None, block: str | None = None) -> None:
         what = f"JointAccelerationLimit {name!r}"
         _check_method(method, what)
-        self.dt = _check_period(dt, what)
+        self.dt = checked_number(dt, f"{what}: dt [s]", 0.0, strict=True)
         self.method = method
-        self.nq, self.nv = int(robot.nq), int(robot.nv)
+        self.nq, self.nv = check_robot(robot, f"robot of {what}")
         self.n_arm = arm_size(robot, joints)
         limits = robot.limits
         base_q = np.concatenate([limits.q_lower[: self.nq - self.n_arm],
@@ -222,8 +219,8 @@ class JointAccelerationLimit(Task):
         self.a_min, self.a_max = np.array(limits.a_lower), np.array(limits.a_upper)
         _check_limits(self.q_min, self.q_max, self.v_min, self.v_max, self.a_min, self.a_max,
                       what)
-        self.name = name
-        self.block = block
+        self.name = checked_name(name, f"name of {what}")
+        self.block = checked_name(block, f"block of {what}")
 
     def terms(self, stack):
         velocity_block(stack, self.block, self.nv, f"JointAccelerationLimit {self.name!r}")

@@ -18,7 +18,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from wbc.errors import InvalidValueError, WbcError
+from wbc.checks import check_robot, checked_name, checked_number
+from wbc.errors import ShapeError
 from wbc.terms import Task, VariableBounds
 
 from .frame import velocity_block
@@ -43,20 +44,17 @@ class ConfigurationLimit(Task):
 
     def __init__(self, robot, gain: float = 0.5, name: str | None = None,
                  joints: int | None = None, block: str | None = None) -> None:
-        gain = float(gain)
-        if not 0.0 < gain <= 1.0:
-            raise InvalidValueError(
-                f"ConfigurationLimit {name!r}: gain must be in (0, 1], got {gain}")
-        self.gain = gain
-        self.nq, self.nv = int(robot.nq), int(robot.nv)
+        what = f"ConfigurationLimit {name!r}"
+        self.gain = checked_number(gain, f"gain of {what}", 0.0, strict=True, high=1.0)
+        self.nq, self.nv = check_robot(robot, f"robot of {what}")
         self.n_arm = arm_size(robot, joints)
         self.lower = np.asarray(robot.limits.q_lower, dtype=float).reshape(-1).copy()
         self.upper = np.asarray(robot.limits.q_upper, dtype=float).reshape(-1).copy()
         if self.lower.shape != (self.nq,) or self.upper.shape != (self.nq,):
-            raise WbcError(f"ConfigurationLimit {name!r}: robot.limits.q_lower/q_upper must "
-                           f"have shape ({self.nq},)")
-        self.name = name
-        self.block = block
+            raise ShapeError(f"{what}: robot.limits.q_lower/q_upper must have shape "
+                             f"({self.nq},)")
+        self.name = checked_name(name, f"name of {what}")
+        self.block = checked_name(block, f"block of {what}")
 
     def terms(self, stack):
         velocity_block(stack, self.block, self.nv, f"ConfigurationLimit {self.name!r}")
@@ -80,15 +78,16 @@ class VelocityLimit(Bounds):
 
     Args:
         robot: the robot (``limits.v_lower``, ``limits.v_upper``, ``nv`` entries).
-        scale: multiplies both limits (e.g. 0.5 for half speed).
+        scale: multiplies both limits, ``> 0`` [-] (e.g. 0.5 for half speed).
         name: task name; the bounds are parameters ``"<name>.lower"``, ``"<name>.upper"``.
         block: the joint-velocity block of the decision vector (``None``: all of it).
     """
 
     def __init__(self, robot, scale: float = 1.0, name: str | None = None,
                  block: str | None = None) -> None:
-        if not np.isfinite(scale) or scale <= 0:
-            raise InvalidValueError(f"VelocityLimit {name!r}: scale must be > 0, got {scale!r}")
+        what = f"VelocityLimit {name!r}"
+        scale = checked_number(scale, f"scale of {what}", 0.0, strict=True)
+        check_robot(robot, f"robot of {what}")
         lower = scale * np.asarray(robot.limits.v_lower, dtype=float)
         upper = scale * np.asarray(robot.limits.v_upper, dtype=float)
         super().__init__(lower, upper, name=name, block=block)

@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-from wbc.errors import InvalidValueError, WbcError
+from wbc.checks import check_robot, checked_name, checked_number
+from wbc.controller import check_frame
+from wbc.errors import WbcError
 from wbc.quantities import registry_of
 from wbc.terms import Cost, Task
 
@@ -105,16 +107,17 @@ class ManipulabilityTask(Task):
     def __init__(self, robot, frame: str = "ee", gamma1: float = 5.0, gamma2: float = 0.5,
                  name: str | None = None, joints: int | None = None,
                  block: str | None = None) -> None:
-        for label, value in (("gamma1", gamma1), ("gamma2", gamma2)):
-            if not value >= 0:
-                raise InvalidValueError(f"ManipulabilityTask {name!r}: {label} must be >= 0 "
-                                        f"[1/s], got {value!r}")
+        what = f"ManipulabilityTask {name!r}"
+        self.gamma1 = checked_number(gamma1, f"gamma1 [1/s] of {what}")
+        self.gamma2 = checked_number(gamma2, f"gamma2 [1/s] of {what}")
+        self.nq, self.nv = check_robot(robot, f"robot of {what}")
+        checked_name(frame, f"frame of {what}", optional=False)
+        check_frame(robot, frame, what)
         self.robot, self.frame = robot, frame
-        self.gamma1, self.gamma2 = float(gamma1), float(gamma2)
-        self.nq, self.nv = int(robot.nq), int(robot.nv)
         self.n_arm = arm_size(robot, joints)
         self.joints = joints
-        self.name, self.block = name, block
+        self.name = checked_name(name, f"name of {what}")
+        self.block = checked_name(block, f"block of {what}")
 
     def target(self, q, v, gamma1, gamma2):
         """``q̈_sa`` (nv,) as SX of the symbols ``q`` (nq,), ``v`` (nv,) and the gains."""

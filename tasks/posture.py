@@ -22,15 +22,22 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from wbc.checks import (
+    check_robot,
+    checked_integer,
+    checked_name,
+    checked_number,
+    checked_weights,
+)
 from wbc.errors import ShapeError, WbcError
 from wbc.terms import Cost, Task
 
-from .frame import _check_gain, _weights, velocity_block
+from .frame import velocity_block, weight_root
 
 
 def arm_size(robot, joints: int | None = None) -> int:
     """Number of trailing arm joints of ``robot`` (see the module docstring)."""
-    nq, nv = int(robot.nq), int(robot.nv)
+    nq, nv = check_robot(robot, "robot")
     if joints is None:
         if getattr(robot, "n_arm", None) is not None:
             joints = int(robot.n_arm)
@@ -41,7 +48,7 @@ def arm_size(robot, joints: int | None = None) -> int:
         else:
             raise WbcError(f"cannot tell the arm joints of a robot with nq = {nq} != nv = "
                            f"{nv}: pass joints=<number of trailing arm joints>")
-    joints = int(joints)
+    joints = checked_integer(joints, "joints")
     if not 0 < joints <= min(nq, nv):
         raise ShapeError(f"joints must be in 1..{min(nq, nv)}, got {joints}")
     return joints
@@ -53,7 +60,9 @@ class PostureTask(Task):
     Args:
         robot: the robot (``nq``, ``nv``, ``neutral()``; see :class:`wbc.Controller`).
         gain: task gain ``α`` [-] (1 = dead-beat).
-        weight: ``w``, scalar or one per arm joint; equals pink's ``cost²``.
+        weight: ``w``, scalar or one per arm joint (``>= 0``, or a CasADi SX expression of the
+            stack's parameters, see :func:`wbc.checks.checked_weights`); equals pink's
+            ``cost²``.
         lm_damping: pink's Levenberg–Marquardt damping (adds ``μ/2 ||v||²``,
             ``μ = lm_damping · Σ w_i (α e_i)²``).
         name: task name; the target is ``"<name>.target"`` (``(nq,)``, default
@@ -67,18 +76,18 @@ class PostureTask(Task):
     def __init__(self, robot, gain: float = 1.0, weight=1.0, lm_damping: float = 0.0,
                  name: str | None = None, joints: int | None = None,
                  block: str | None = None) -> None:
-        self.nq, self.nv = int(robot.nq), int(robot.nv)
-        self.n_arm = arm_size(robot, joints)
         what = f"PostureTask {name!r}"
-        self.gain = _check_gain(gain, what)
-        self.weight = _weights(weight, self.n_arm, what)
-        self.lm_damping = _check_gain(lm_damping, f"{what} (lm_damping)")
+        self.nq, self.nv = check_robot(robot, f"robot of {what}")
+        self.n_arm = arm_size(robot, joints)
+        self.gain = checked_number(gain, f"gain of {what}")
+        self.weight = checked_weights(weight, self.n_arm, f"weight of {what}")
+        self.lm_damping = checked_number(lm_damping, f"lm_damping of {what}")
         self.default_target = np.asarray(robot.neutral(), dtype=float).reshape(-1)
         if self.default_target.shape != (self.nq,):
             raise ShapeError(f"{what}: robot.neutral() has shape "
                              f"{self.default_target.shape}, expected ({self.nq},)")
-        self.name = name
-        self.block = block
+        self.name = checked_name(name, f"name of {what}")
+        self.block = checked_name(block, f"block of {what}")
         self.error = None
 
     def terms(self, stack):
@@ -91,9 +100,7 @@ class PostureTask(Task):
         self.error = e
         terms = [Cost(v[self.nv - k:], self.gain / dt * e, self.weight, self.name)]
         if self.lm_damping > 0:
-            root = np.sqrt(self.weight)
-            root = ca.DM(root) if np.ndim(root) else float(root)
-            mu = self.lm_damping * self.gain ** 2 * ca.sumsqr(root * e)
+            mu = self.lm_damping * self.gain ** 2 * ca.sumsqr(weight_root(self.weight) * e)
             terms.append(Cost(v, 0.0, mu, f"{self.name} (lm damping)"))
         return terms
 

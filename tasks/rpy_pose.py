@@ -29,8 +29,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from wbc.checks import check_robot, checked_name, checked_number
 from wbc.controller import check_frame
-from wbc.errors import InvalidValueError
 from wbc.terms import Cost, Task
 
 from .frame import velocity_block
@@ -105,7 +105,7 @@ class RpyPoseTask(Task):
     Args:
         robot: a mobile manipulator of :mod:`wbc.robots` (planar base, heading ``q[2]``).
         frame: the controlled frame.
-        gain: ``λ_p`` [1/s] (Table I: 1.7).
+        gain: ``λ_p > 0`` [1/s] (Table I: 1.7).
         name: task name; the target is parameter ``"<name>.target"``, shape (6,):
             ``(x, y, z [m], roll, pitch, yaw [rad])`` in the world.
 
@@ -116,10 +116,14 @@ class RpyPoseTask(Task):
 
     def __init__(self, robot, frame: str = "ee", gain: float = 1.7, name: str | None = None,
                  block: str | None = None) -> None:
-        check_frame(robot, frame, f"RpyPoseTask {name!r}")
-        if not np.isfinite(gain) or gain <= 0:
-            raise InvalidValueError(f"gain of RpyPoseTask {name!r} must be > 0, got {gain!r}")
-        self.robot, self.frame, self.gain, self.name, self.block = robot, frame, gain, name, block
+        what = f"RpyPoseTask {name!r}"
+        check_robot(robot, f"robot of {what}")
+        checked_name(frame, f"frame of {what}", optional=False)
+        check_frame(robot, frame, what)
+        self.gain = checked_number(gain, f"gain of {what}", 0.0, strict=True)
+        self.robot, self.frame = robot, frame
+        self.name = checked_name(name, f"name of {what}")
+        self.block = checked_name(block, f"block of {what}")
         self.error = self.jacobian = self.position_error_norm = None
 
     def terms(self, stack):

@@ -22,6 +22,14 @@ import casadi as ca
 import numpy as np
 
 import wbc
+from wbc.checks import (
+    as_float_array,
+    check_finite,
+    check_robot,
+    checked_integer,
+    checked_name,
+    checked_number,
+)
 from wbc.errors import InvalidValueError, ShapeError
 from wbc.terms import Cost, Task
 
@@ -31,8 +39,13 @@ __all__ = ["ArmCompensation", "DexterousPosture", "share_task", "sharing_factor"
 
 
 def sharing_factor(error_norm, r_fm: float = 0.25, r_mm: float = 0.9):
-    """Eq. 11: ψ = 1 if ``error_norm <= r_fm``, 0.5 if ``<= r_mm``, else 0 (CasADi)."""
-    if not 0 <= r_fm < r_mm:
+    """Eq. 11: ψ = 1 if ``error_norm <= r_fm``, 0.5 if ``<= r_mm``, else 0 (CasADi); radii
+    [m]."""
+    if not isinstance(error_norm, (ca.SX, ca.DM)):
+        error_norm = checked_number(error_norm, "error_norm [m] of sharing_factor")
+    r_fm = checked_number(r_fm, "r_fm [m] of sharing_factor")
+    r_mm = checked_number(r_mm, "r_mm [m] of sharing_factor")
+    if not r_fm < r_mm:
         raise InvalidValueError(f"need 0 <= r_fm < r_mm, got r_fm = {r_fm}, r_mm = {r_mm}")
     return ca.if_else(error_norm <= r_fm, 1.0, ca.if_else(error_norm <= r_mm, 0.5, 0.0))
 
@@ -51,11 +64,17 @@ def share_task(stack, psi, n_base: int, priority: int = 0) -> ca.SX:
         The ψ expression (to report it, e.g. as a solution quantity).
     """
     n = stack.variables.n
-    if not 0 <= n_base <= n:
+    n_base = checked_integer(n_base, "n_base of share_task")
+    priority = checked_integer(priority, "priority of share_task", low=None)
+    if not n_base <= n:
         raise ShapeError(f"n_base must lie in [0, {n}], got {n_base}")
     if isinstance(psi, str):
         psi = stack.parameter(psi, 1)
+    elif not isinstance(psi, (ca.SX, ca.DM)):
+        psi = checked_number(psi, "psi of share_task", 0.0, high=1.0)
     psi = ca.SX(psi)
+    if psi.shape != (1, 1):
+        raise ShapeError(f"psi of share_task must be a scalar, got shape {psi.shape}")
     stack.set_mobility(ca.vertcat(ca.repmat(1 - psi, n_base, 1), ca.repmat(psi, n - n_base, 1)),
                        levels=[priority])
     return psi
@@ -75,13 +94,17 @@ class DexterousPosture(Task):
 
     def __init__(self, robot, q_dex, gain: float = 3.5, name: str | None = None,
                  block: str | None = None) -> None:
-        self.q_dex = np.asarray(q_dex, dtype=float)
-        if self.q_dex.ndim != 1 or not 0 < self.q_dex.size <= robot.nv:
-            raise ShapeError(f"q_dex must be a vector of at most nv = {robot.nv} entries, got "
-                             f"shape {self.q_dex.shape}")
-        if not np.isfinite(gain) or gain < 0:
-            raise InvalidValueError(f"gain of DexterousPosture must be >= 0, got {gain!r}")
-        self.robot, self.gain, self.name, self.block = robot, float(gain), name, block
+        what = f"DexterousPosture {name!r}"
+        nv = check_robot(robot, f"robot of {what}")[1]
+        self.q_dex = as_float_array(q_dex, f"q_dex of {what}")
+        if self.q_dex.ndim != 1 or not 0 < self.q_dex.size <= nv:
+            raise ShapeError(f"q_dex of {what} must be a vector of 1 to nv = {nv} entries, "
+                             f"got shape {self.q_dex.shape}")
+        check_finite(self.q_dex, f"q_dex of {what}")
+        self.gain = checked_number(gain, f"gain [1/s] of {what}")
+        self.robot = robot
+        self.name = checked_name(name, f"name of {what}")
+        self.block = checked_name(block, f"block of {what}")
 
     def terms(self, stack):
         nv, na = int(self.robot.nv), self.q_dex.size
@@ -97,14 +120,16 @@ class ArmCompensation:
     """Eq. 14's correction ``Δq̇_a = J_a⁺ J_b (q̇_b,ref − q̇_bf)`` solved as a QP on ``backend``.
 
     Args:
-        n_arm: arm joints; rows: task rows (6 for a pose).
-        backend: QP backend.
+        n_arm: arm joints (>= 1); rows: task rows (>= 1, 6 for a pose).
+        backend: QP backend; profile: its tolerance profile.
 
     Call it with ``(J_arm, J_base, qd_base_ref, qd_base_feasible)`` (numpy) to get ``Δq̇_a``.
     """
 
     def __init__(self, n_arm: int, rows: int = 6, backend: str = "daqp",
                  profile: str = "default") -> None:
+        n_arm = checked_integer(n_arm, "n_arm of ArmCompensation", 1)
+        rows = checked_integer(rows, "rows of ArmCompensation", 1)
         stack = wbc.Stack(wbc.Variables(dqd_arm=n_arm), min_norm=True)
         x = stack.variables.symbol
         J = stack.parameter("J_arm", (rows, n_arm), np.zeros((rows, n_arm)))

@@ -34,7 +34,7 @@ import casadi as ca
 import numpy as np
 
 import wbc
-from wbc.checks import checked_array
+from wbc.checks import checked_array, checked_integer, checked_matrix, checked_name, checked_vector
 from wbc.errors import InvalidValueError, ShapeError, WbcError
 from wbc.terms import Cost, Equality, Inequality, Task
 
@@ -56,11 +56,10 @@ def _torques(stack, block: str, what: str) -> ca.SX:
 
 
 def _wheel_jacobian(J) -> np.ndarray:
-    J = np.asarray(J, dtype=float)
-    if J.ndim != 2 or J.shape[1] != 3 or J.shape[0] < 3:
+    J = checked_matrix(J, "J")
+    if J.shape[1] != 3 or J.shape[0] < 3:
         raise ShapeError(f"J must be the (N, 3) wheel Jacobian with N >= 3 wheels, got shape "
                          f"{J.shape}")
-    J = checked_array(J, J.shape, "J")
     if np.linalg.matrix_rank(J) < 3:
         raise InvalidValueError("J must have full column rank 3 (otherwise some platform "
                                 "wrenches cannot be produced by the wheels)")
@@ -79,7 +78,9 @@ class WheelWrench(Task):
     """
 
     def __init__(self, J, name: str = "wrench", block: str = "tau") -> None:
-        self.J, self.name, self.block = _wheel_jacobian(J), name, block
+        self.J = _wheel_jacobian(J)
+        self.name = checked_name(name, "name of WheelWrench")
+        self.block = checked_name(block, f"block of WheelWrench {name!r}", optional=False)
 
     def terms(self, stack):
         tau = _torques(stack, self.block, f"WheelWrench {self.name!r}")
@@ -93,8 +94,7 @@ class WheelWrench(Task):
 
 def _friction_coefficients(mu, n: int) -> np.ndarray:
     """``μ`` as (N,) finite positive coefficients (a scalar is broadcast)."""
-    mu = np.asarray(mu, dtype=float)
-    mu = checked_array(np.full(n, float(mu)) if mu.ndim == 0 else mu, (n, 1), "mu").ravel()
+    mu = checked_vector(mu, n, "mu")
     if np.any(mu <= 0):
         raise InvalidValueError(f"mu must be > 0, got {mu}")
     return mu
@@ -123,7 +123,11 @@ class FrictionUtilisation(Task):
 
     def __init__(self, n_wheels: int, mu=1.0, name: str = "friction",
                  parameters: str = "friction", block: str = "tau") -> None:
-        self.n, self.name, self.parameters, self.block = int(n_wheels), name, parameters, block
+        what = f"FrictionUtilisation {name!r}"
+        self.n = checked_integer(n_wheels, f"n_wheels of {what}", 1)
+        self.name = checked_name(name, f"name of {what}")
+        self.parameters = checked_name(parameters, f"parameters of {what}", optional=False)
+        self.block = checked_name(block, f"block of {what}", optional=False)
         self.mu = _friction_coefficients(mu, self.n)
 
     def terms(self, stack):
@@ -144,8 +148,12 @@ class UtilisationBound(Task):
 
     def __init__(self, n_wheels: int, mu=1.0, name: str = "utilisation_bound",
                  parameters: str = "friction", block: str = "tau", bound: str = "t") -> None:
-        self.n, self.name, self.parameters = int(n_wheels), name, parameters
-        self.block, self.bound = block, bound
+        what = f"UtilisationBound {name!r}"
+        self.n = checked_integer(n_wheels, f"n_wheels of {what}", 1)
+        self.name = checked_name(name, f"name of {what}")
+        self.parameters = checked_name(parameters, f"parameters of {what}", optional=False)
+        self.block = checked_name(block, f"block of {what}", optional=False)
+        self.bound = checked_name(bound, f"bound of {what}", optional=False)
         self.mu = _friction_coefficients(mu, self.n)
 
     def terms(self, stack):
@@ -162,7 +170,7 @@ def distribution_stack(J, method: str = "proportional", mu=1.0) -> wbc.Stack:
     Parameters to set per tick: ``"wrench.f_d"`` (3,), ``"friction.normal_forces"`` (N,) and
     ``"friction.mu"`` (N,) (not used by ``"min_norm"``); ``"wrench.J"`` defaults to ``J``.
     """
-    if method not in DISTRIBUTIONS:
+    if not isinstance(method, str) or method not in DISTRIBUTIONS:
         raise InvalidValueError(f"method must be one of {DISTRIBUTIONS}, got {method!r}")
     J = _wheel_jacobian(J)
     n = J.shape[0]

@@ -66,7 +66,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from wbc.checks import all_finite
+from wbc.checks import all_finite, as_float_array, checked_name, checked_number
 from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
 from wbc.solvers.reference_petric import rate_limited_twist
 from wbc.terms import Cost, VariableBounds
@@ -86,23 +86,6 @@ def smoothstep(s):
 def _sign(x: float) -> float:
     """``sign(x)`` with ``sign(0) = 0``, as eqs. 8 and 10 print it."""
     return float((x > 0.0) - (x < 0.0))
-
-
-def _number(value, name: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InvalidValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(number):
-        raise NonFiniteError(f"{name} must be finite, got {number}")
-    return number
-
-
-def _at_least(value, name: str, low: float, strict: bool) -> float:
-    number = _number(value, name)
-    if number < low or (strict and number == low):
-        raise InvalidValueError(f"{name} must be {'>' if strict else '>='} {low}, got {number}")
-    return number
 
 
 class VelocityField:
@@ -141,30 +124,30 @@ class VelocityField:
                  delta_f=0.15, delta_r=0.15, phi_min=_DEG30, phi_max=_DEG45, phi_t=_DEG30,
                  epsilon=0.05, v_max=1.0, omega_max=1.0, alpha=0.25, dv_max=1.0,
                  domega_max=1.0) -> None:
-        self.l0 = _at_least(l0, "l0", 0.0, strict=False)
-        self.l1 = _at_least(l1, "l1", 0.0, strict=True)
-        self.l2 = _at_least(l2, "l2", 0.0, strict=True)
-        self.b_d = _at_least(b_d, "b_d", 0.0, strict=False)
-        self.k_f = _at_least(k_f, "k_f", 0.0, strict=False)
-        self.k_r = _at_least(k_r, "k_r", 0.0, strict=False)
-        self.k_omega = _at_least(k_omega, "k_omega", 0.0, strict=False)
-        self.delta_f = _number(delta_f, "delta_f")
-        self.delta_r = _number(delta_r, "delta_r")
-        self.phi_min = _at_least(phi_min, "phi_min", 0.0, strict=False)
-        self.phi_max = _at_least(phi_max, "phi_max", self.phi_min, strict=True)
+        self.l0 = checked_number(l0, "l0", 0.0, strict=False)
+        self.l1 = checked_number(l1, "l1", 0.0, strict=True)
+        self.l2 = checked_number(l2, "l2", 0.0, strict=True)
+        self.b_d = checked_number(b_d, "b_d", 0.0, strict=False)
+        self.k_f = checked_number(k_f, "k_f", 0.0, strict=False)
+        self.k_r = checked_number(k_r, "k_r", 0.0, strict=False)
+        self.k_omega = checked_number(k_omega, "k_omega", 0.0, strict=False)
+        self.delta_f = checked_number(delta_f, "delta_f", low=None)
+        self.delta_r = checked_number(delta_r, "delta_r", low=None)
+        self.phi_min = checked_number(phi_min, "phi_min", 0.0, strict=False)
+        self.phi_max = checked_number(phi_max, "phi_max", self.phi_min, strict=True)
         if self.phi_max > math.pi:
             raise InvalidValueError(f"phi_max must be <= pi, got {self.phi_max}")
-        self.phi_t = _at_least(phi_t, "phi_t", 0.0, strict=True)
+        self.phi_t = checked_number(phi_t, "phi_t", 0.0, strict=True)
         if self.phi_t > math.pi:
             raise InvalidValueError(f"phi_t must be <= pi, got {self.phi_t}")
-        self.epsilon = _at_least(epsilon, "epsilon", 0.0, strict=True)
-        self.v_max = _at_least(v_max, "v_max", 0.0, strict=True)
-        self.omega_max = _at_least(omega_max, "omega_max", 0.0, strict=True)
-        self.alpha = _at_least(alpha, "alpha", 0.0, strict=True)
+        self.epsilon = checked_number(epsilon, "epsilon", 0.0, strict=True)
+        self.v_max = checked_number(v_max, "v_max", 0.0, strict=True)
+        self.omega_max = checked_number(omega_max, "omega_max", 0.0, strict=True)
+        self.alpha = checked_number(alpha, "alpha", 0.0, strict=True)
         if self.alpha > 1.0:
             raise InvalidValueError(f"alpha must be <= 1, got {self.alpha}")
-        self.dv_max = _at_least(dv_max, "dv_max", 0.0, strict=True)
-        self.domega_max = _at_least(domega_max, "domega_max", 0.0, strict=True)
+        self.dv_max = checked_number(dv_max, "dv_max", 0.0, strict=True)
+        self.domega_max = checked_number(domega_max, "domega_max", 0.0, strict=True)
         self.r_f = self.l1 + self.l2
         self.limit = np.array([self.v_max, self.omega_max])
         self.rate_limit = np.array([self.dv_max, self.domega_max])
@@ -175,7 +158,7 @@ class VelocityField:
     # instead of the ~50 µs of numpy on 0-d arrays); arrays of points map them element-wise.
     @staticmethod
     def _points(p) -> np.ndarray:
-        arr = np.asarray(p, dtype=np.float64)
+        arr = as_float_array(p, "p")
         if arr.ndim == 0 or arr.shape[-1] != 3:
             raise ShapeError(f"p must have shape (3,) or (..., 3), got {arr.shape}")
         if not all_finite(arr.reshape(-1)):
@@ -226,7 +209,7 @@ class VelocityField:
         """
         p = self._points(p)
         if phi_t is not None:
-            phi_t = _number(phi_t, "phi_t")
+            phi_t = checked_number(phi_t, "phi_t", low=None)
             if abs(phi_t) > math.pi:
                 raise InvalidValueError(f"phi_t must lie in [-pi, pi], got {phi_t}")
 
@@ -240,7 +223,7 @@ class VelocityField:
     # ------------------------------------------------------------------ the stateful tick
     def reset(self, command=(0.0, 0.0)) -> None:
         """Forget the latched heading and set the previous command ``(v, ω)`` (default rest)."""
-        command = np.asarray(command, dtype=np.float64)
+        command = as_float_array(command, "command")
         if command.shape != (2,):
             raise ShapeError(f"command must have shape (2,), got {command.shape}")
         if not np.all(np.isfinite(command)):
@@ -298,6 +281,8 @@ class VelocityField:
         Returns:
             ``stack``.
         """
+        name = checked_name(name, "name of rate_limit_level", optional=False)
+        block = checked_name(block, "block of rate_limit_level")
         size = stack.variables.size(block) if block else stack.variables.n
         if size != 2:
             where = f"block {block!r}" if block else "the decision vector"

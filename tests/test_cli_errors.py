@@ -104,6 +104,7 @@ BAD_ARGUMENTS = [
     (["mink", "--backends", "cplex"], "['cplex'] not available"),
     (["placo", "--ticks", "0"], "--ticks must be >= 1"),
     (["reproduce", "--bogus"], "unrecognized arguments: --bogus"),
+    (["exactness", "--states", "0"], "--states must be >= 1"),
     (["fuzz", "--cases", "0"], "--cases must be >= 1"),
     (["fuzz", "--seconds", "-1"], "--seconds must be > 0"),
     (["fuzz", "--backends", "nosuch"], "unknown or unavailable QP backend 'nosuch'"),

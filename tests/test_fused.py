@@ -180,7 +180,7 @@ def cascade_workspaces():
 @pytest.mark.parametrize("active", [False, True])
 @pytest.mark.parametrize("dependent", [False, True])
 def test_a_fused_cascade_equals_the_ordinary_one(cascade_workspaces, active, dependent):
-    """Every level's x agrees with the ordinary cascade (frozen rows rank-compressed, exact)
+    """Every level's x agrees with the ordinary cascade (levels above eliminated, exact)
     to 1e-8, C with the virtual machine to 1e-12; every fused QP meets its KKT conditions;
     the frozen task rows hold from level to level to the band (and daqp's primal_tol)."""
     rng = np.random.default_rng(10 + 2 * active + dependent)
@@ -203,10 +203,82 @@ def test_a_fused_cascade_equals_the_ordinary_one(cascade_workspaces, active, dep
         for above, x in zip(c[:-1], c[1:], strict=True):  # kept where the level above left them
             c0 = J0 @ above
             assert np.all(np.abs(J0 @ x - c0) <= FROZEN_BAND * (1 + np.abs(c0)) + 1e-10)
-    assert fused.fallback_solves == fallbacks  # the generated daqp solved every tick
+    # ticks whose levels touch a bound, a hard row or a frozen soft row (the soft row of level
+    # 0 is violated on most instances) are answered by the ordinary path
+    assert fused.fallback_solves >= fallbacks
+    before = fused.fallback_solves + fused.skipped_solves
+    solution = fused.solve()
     labels = [label for label, _, _ in fused.last_qps()]
-    assert labels == [level.label for level in fused.solve().levels]
-    assert fused.solve().levels[1].frozen_band == FROZEN_BAND
+    if fused.fallback_solves + fused.skipped_solves == before:  # the fused call answered
+        assert labels == [level.label for level in solution.levels]
+        assert solution.levels[1].frozen_band == FROZEN_BAND
+    else:  # the ordinary path: exact, a level the levels above determine is not solved
+        assert set(labels) <= {level.label for level in solution.levels}
+        assert solution.levels[1].frozen_band == 0.0
+
+
+def saturated_cascade(saturated: bool) -> wbc.CompiledStack:
+    """Two strict levels on a box; ``saturated``: level 0 pushed into the box's bounds."""
+    rng = np.random.default_rng(7)
+    n = 5
+    stack = wbc.Stack(wbc.Variables(x=n), damping=1e-3)
+    stack.add(LinearTask(rng.standard_normal((2, n)), 30 * np.ones(2) if saturated
+                         else 0.1 * np.ones(2), name="first"), priority=0)
+    stack.add(LinearTask(np.eye(n), rng.standard_normal(n), name="posture"), priority=1)
+    stack.constrain(Bounds(-np.ones(n), np.ones(n), name="box"))
+    return stack.compile()
+
+
+@pytest.mark.parametrize("saturated", [False, True])
+def test_a_certified_cascade_touching_bounds_stays_on_the_fused_path(saturated):
+    """Two strict levels: with the box far away, and with level 0 pushed into the box's
+    bounds (a non-degenerate vertex), the fused call answers (its certificate holds), and its
+    answer is the exact one."""
+    compiled = saturated_cascade(saturated)
+    fused = FusedWorkspace(compiled, "default")
+    referee = wbc.Workspace(compiled, "quadprog", "tight")
+    solution = fused.solve()
+    assert solution.ok, solution.message
+    assert fused.fallback_solves == 0
+    np.testing.assert_allclose(solution.x, referee.solve().x, atol=1e-7)
+    if saturated:  # bounds are active at the second level
+        assert np.abs(fused.last_qps()[1][2].z).max() > 1e-6
+
+
+def test_the_certificate_rejects_an_inexact_answer():
+    """The certificate (:func:`wbc.fused._certified`) on the fused cascade's own answer holds;
+    moved off an active bound by 1e-7, or with a bound multiplier of the wrong sign, it does
+    not."""
+    from wbc.fused import _cascade, _certified, fused_settings
+
+    compiled = saturated_cascade(True)
+    fused = FusedWorkspace(compiled, "default", compile=False)
+    fused.solve()
+    p = ca.MX.sym("p", compiled.defaults.shape[0])
+    symbols = [[ca.MX.sym(f"{k}_{i}", size) for k, size in
+                (("z", b.n_z), ("y", b.m_top + b.n_frozen_soft + b.n_frozen_cost),
+                 ("zb", b.n_z))] for i, b in enumerate(compiled.blocks)]
+    _, levels = _cascade(compiled, p, lambda i, qp: (symbols[i][0], 0, symbols[i][1],
+                                                     symbols[i][2]))
+    certificate = ca.Function("c", [p, *[s for level in symbols for s in level]],
+                              [_certified(compiled, levels)])
+    answer = [np.array(r) for result in fused._results for r in (result.x, result.y, result.z)]
+
+    def holds(values):
+        return bool(certificate(fused.p, *values))
+
+    assert fused_settings(compiled, {})["primal_tol"] <= 1e-10
+    assert holds(answer)
+    z1, bound_multipliers = answer[3], answer[5]
+    j = int(np.argmax(np.abs(bound_multipliers[:compiled.n])))
+    assert abs(bound_multipliers[j]) > 1e-6  # a bound active at level 1
+    moved = [a.copy() for a in answer]
+    moved[3][j] -= 1e-7 * np.sign(bound_multipliers[j])  # off its side, multiplier kept
+    assert not holds(moved)
+    flipped = [a.copy() for a in answer]
+    flipped[5][j] = -bound_multipliers[j]
+    assert not holds(flipped)
+    assert np.isfinite(z1).all()
 
 
 def test_x_above_at_the_start_of_the_parameter_vector():
@@ -470,32 +542,37 @@ def test_a_fused_cascade_controller_agrees_with_the_ordinary_path(robot, cascade
         np.testing.assert_allclose(v, ordinary.step(q, **refs), atol=1e-8)
         assert fused.last_solution.ok and len(fused.last_solution.levels) == 2
         q = q + DT * v
+    # the first ticks meet the velocity limits (non-degenerate vertices): certified, fused
     assert fused.workspace.fallback_solves == 0
 
 
 @pytest.mark.parametrize("levels", [1, 2])
-def test_a_fused_tick_allocates_nothing_in_steady_state(controllers, cascade_controllers,
+def test_a_fused_tick_allocates_nothing_in_steady_state(robot, controllers, cascade_controllers,
                                                         levels):
-    """The command and the solution are buffers reused every tick; over 1000 ticks no memory
+    """With ``out=`` the command is written into the caller's buffer and the solution stays in
+    the tick's buffers (copied only when ``last_solution`` is read): over 1000 ticks no memory
     block stays allocated, and the peak stays at the level of the loop's own bookkeeping. The
-    ordinary path, for contrast, makes new arrays and a new solution every tick."""
+    ordinary path, for contrast, makes new arrays and a new solution every tick. (The target
+    is where the hand is: no limit is met, so a cascade stays on the fused path.)"""
     fused, ordinary = controllers if levels == 1 else cascade_controllers
     q = Q0 + 0.05
-    first = fused.step(q)
-    assert fused.step(q) is first and fused.last_solution is fused.last_solution
-    assert ordinary.step(q) is not ordinary.step(q)
+    for ctrl in (fused, ordinary):
+        ctrl.set_references(ee=robot.frame_pose(q, "ee"))
+    buffer = np.empty(robot.nv)
+    assert fused.step(q, out=buffer) is buffer and fused.last_command is buffer
+    assert fused.last_solution is fused.last_solution  # one snapshot per tick, when read
     fallbacks = fused.workspace.fallback_solves
 
     def blocks_and_peak(ctrl):
         for _ in range(10):  # warm caches
-            ctrl.step(q)
+            ctrl.step(q, out=buffer)
         tracemalloc.start()
         try:
             before = tracemalloc.take_snapshot()
             base, _ = tracemalloc.get_traced_memory()
             tracemalloc.reset_peak()
             for _ in range(1000):
-                ctrl.step(q)
+                ctrl.step(q, out=buffer)
             _, peak = tracemalloc.get_traced_memory()
             after = tracemalloc.take_snapshot()
         finally:

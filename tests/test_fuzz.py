@@ -37,6 +37,26 @@ def test_robot_cases_have_no_defect_on_the_fused_tick():
     assert {c["robot"] for c, *_ in cases} == set(wbc.robots.names())
 
 
+def test_constructor_cases_have_no_raw_exception():
+    """Every public constructor, stack method, robot loader and reference, fed bad arguments:
+    each call returns or raises a WbcError, never another exception."""
+    cases = list(fuzz.constructor_cases(seed=1, count=600))
+    assert [(c, m) for c, _, d, m in cases if d] == []
+    assert {c["constructor"] for c, *_ in cases} == set(fuzz.constructor_specs())
+    assert {"error", "success"} <= {outcome for _, outcome, _, _ in cases}
+    injected = " ".join(c["injected"] for c, *_ in cases)
+    assert all(f"={kind}" in injected for kind in fuzz.BAD_VALUES)
+
+
+def test_the_constructor_family_flags_a_raw_exception():
+    def broken(value):
+        return np.asarray(value, dtype=float)  # numpy's own ValueError on a str
+
+    assert fuzz.classify_call(broken, {"value": "abc"})[:2] == ("defect", "exception")
+    assert fuzz.classify_call(broken, {"value": 1.0})[:2] == ("success", None)
+    assert fuzz.classify_call(wbc.Variables, {"blocks": "abc"})[:2] == ("error", None)
+
+
 class _Solved:
     status = wbc.Status.SOLVED
     message = ""
@@ -89,7 +109,9 @@ def test_cli_writes_the_contract(tmp_path):
     assert main(["fuzz", "--cases", "60", "--backends", "daqp", "--out", str(tmp_path)]) == 0
     result = json.loads((tmp_path / "fuzz.json").read_text())
     assert result["cases"] >= 50 and result["defects"] == []
-    assert set(result["outcomes"]) >= {"daqp"}
+    assert set(result["outcomes"]) >= {"daqp", "constructors"}
+    assert result["families"]["constructors"] == fuzz.CONSTRUCTOR_MIN
+    assert sum(result["families"].values()) == result["cases"]
     assert sum(result["outcomes"]["daqp"].values()) > 0
     assert "| backend |" in (tmp_path / "fuzz.md").read_text()
 

@@ -220,3 +220,20 @@ def test_bad_stack_arguments():
         wbc.Stack(2).compile()
     with pytest.raises(wbc.WbcError, match="bounds are hard"):
         wbc.Stack(2).add(Bounds(-1, 1, name="b"))
+
+
+def test_editing_a_stack_a_controller_was_built_from_is_refused():
+    """The controller compiled a snapshot: an edit afterwards would silently not reach it."""
+    class Point:  # the smallest robot: no kinematics, two velocity coordinates
+        nq = nv = 2
+
+    stack = wbc.Stack(2, damping=1e-3).add(LinearTask(np.eye(2), [1.0, 0.0], name="t"))
+    stack.add(LinearTask(np.eye(2), [0.0, 0.0], name="before"), priority=1)  # still editable
+    wbc.Controller(Point(), stack, dt=0.01)
+    for edit in (lambda: stack.add(LinearTask(np.eye(2), [0.0, 1.0], name="late")),
+                 lambda: stack.constrain(Bounds(-1.0, 1.0, name="late_bounds")),
+                 lambda: stack.parameter("late_parameter", 2),
+                 lambda: stack.set_mobility(np.ones(2))):
+        with pytest.raises(wbc.WbcError, match="compiled into a wbc.Controller"):
+            edit()
+    wbc.Controller(Point(), stack, dt=0.01)  # more controllers from the finished stack: fine

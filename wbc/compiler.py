@@ -13,7 +13,7 @@ transpose lands row-major, straight into row blocks of C-ordered numpy arrays.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import casadi as ca
@@ -35,10 +35,17 @@ class HardNames:
         rows: the constraint name of each hard row (``"zero mobility"`` for a pinned direction).
         bounds: per variable, the names of the constraints bounding it (several when bounds
             overlap; the tightest one holds).
+        bound_owners: the names of the constraints that bound variables, each once.
+        bound_values: ``p -> (L, U)``, each ``(n, len(bound_owners))``: column ``j`` is the
+            lower and upper bound constraint ``bound_owners[j]`` alone puts on ``x`` (±inf
+            where it does not bound), in ``x``'s units; ``lb``/``ub`` are their row-wise
+            max/min. ``None`` when not compiled.
     """
 
     rows: tuple[str, ...]
     bounds: tuple[tuple[str, ...], ...]
+    bound_owners: tuple[str, ...] = ()
+    bound_values: ca.Function | None = None
 
 
 @dataclass(frozen=True)
@@ -110,9 +117,11 @@ class CompiledStack:
         blocks: the QPs in solving order.
         n_e: rows of the frozen cost-row store; ``n_s``: rows of the frozen soft-row store.
         rank_tol: relative tolerance of the rank compression.
-        freeze_tol: half-width of the band frozen rows are kept in (relative).
         quantities: names of the parameters declared as model quantities
             (:meth:`wbc.Stack.quantity`), which a controller fills from its robot.
+        residuals: ``(p, x) -> r``: every task's residual at ``x`` (see :data:`residual_rows`),
+            ``None`` for a stack compiled without (see :meth:`wbc.Solution.residuals`).
+        residual_rows: task name -> its rows in ``r``.
         x_above_offset: first index in ``p`` of :meth:`wbc.Stack.x_above` (``n`` entries the
             workspace writes after every level), or ``None`` if no task uses it.
     """
@@ -124,9 +133,10 @@ class CompiledStack:
     n_e: int
     n_s: int
     rank_tol: float
-    freeze_tol: float
     quantities: frozenset[str] = frozenset()
     x_above_offset: int | None = None
+    residuals: ca.Function | None = None
+    residual_rows: dict[str, slice] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -182,12 +192,15 @@ def compile_stack(stack) -> CompiledStack:
 
     blocks: list[QPBlock] = []
     n_e = n_s = 0
+    residuals: dict[str, list[ca.SX]] = {}  # task name -> its residual rows
     for k in sorted(stack.levels):
-        C_h, l_h, u_h, lb, ub, hard_names = _hard_constraints(stack, x, n, k)
+        C_h, l_h, u_h, lb, ub, hard_names = _hard_constraints(stack, x, n, k, p_sym)
         W = _metric(stack, k)
         entries = stack.levels[k]
         names = tuple(dict.fromkeys(e.task_name for e in entries))
         costs, softs = _level_terms(entries, x)
+        for e in entries:
+            residuals.setdefault(e.task_name, []).append(_residual(e.term, x))
         A_c = ca.vertcat(*[c[0] for c in costs]) if costs else ca.SX(0, n)
         r0 = ca.vertcat(*[c[1] for c in costs]) if costs else ca.SX(0, 1)
         t = ca.vertcat(*[c[2] for c in costs]) if costs else ca.SX(0, 1)
@@ -224,7 +237,7 @@ def compile_stack(stack) -> CompiledStack:
         n_s += m_s
 
     if stack.min_norm:
-        C_h, l_h, u_h, lb, ub, hard_names = _hard_constraints(stack, x, n, None)
+        C_h, l_h, u_h, lb, ub, hard_names = _hard_constraints(stack, x, n, None, p_sym)
         W = _metric(stack, None)
         fn = _block_function("min_norm", p_sym, W, ca.SX.zeros(n), C_h, l_h, u_h, lb, ub,
                              ca.SX(n, 0))
@@ -232,9 +245,33 @@ def compile_stack(stack) -> CompiledStack:
                               m_task=0, m_cost=0, e_offset=n_e, s_offset=n_s,
                               n_frozen_soft=n_s, n_frozen_cost=n_e, m_frozen_eq=min(n_e, n),
                               scale_index=None, hard_names=hard_names))
+    residual_rows, start = {}, 0
+    for name, rows in residuals.items():
+        size = sum(r.shape[0] for r in rows)
+        residual_rows[name] = slice(start, start + size)
+        start += size
+    r = ca.vertcat(*[row for rows in residuals.values() for row in rows])
     return CompiledStack(variables, layout, defaults, tuple(blocks), n_e, n_s, stack.rank_tol,
-                         stack.freeze_tol, frozenset(P.name for P in params if P.quantity),
-                         x_above_offset)
+                         frozenset(P.name for P in params if P.quantity),
+                         x_above_offset, ca.Function("residuals", [p_sym, x], [r]),
+                         residual_rows)
+
+
+def _residual(term, x: ca.SX) -> ca.SX:
+    """A task term's residual at ``x``, unweighted, in the task's units: the cost's own
+    ``residual`` expression if it has one, else ``expr − target`` of a cost or equality (the
+    target unscaled: a scaling level's ``s < 1`` shows), the signed violation
+    ``min(expr − lower, 0) + max(expr − upper, 0)`` of a soft inequality (0 inside)."""
+    if isinstance(term, Inequality):
+        expr = as_sx_column(term.expr, None, "")
+        rows = expr.shape[0]
+        lower = as_sx_column(term.lower, rows, "", True)
+        upper = as_sx_column(term.upper, rows, "", True)
+        return ca.fmin(expr - lower, 0) + ca.fmax(expr - upper, 0)
+    if isinstance(term, Cost) and term.residual is not None:
+        return as_sx_column(term.residual, None, "")
+    expr = as_sx_column(term.expr, None, "")
+    return expr - as_sx_column(term.target, expr.shape[0], "")
 
 
 #: A per-tick mobility entry at or below this value is zero: the variable is pinned.
@@ -280,14 +317,22 @@ def _level_terms(entries, x):
     return costs, softs
 
 
-def _hard_constraints(stack, x, n, priority: int | None):
+def _hard_constraints(stack, x, n, priority: int | None, p_sym: ca.SX | None = None):
     """Rows ``l_h <= C_h x <= u_h`` and bounds ``lb <= x <= ub`` of level ``priority``
     (``None``: the min-norm level): constraints of every level, those local to this level, and
-    the mobility's pins where it holds; and the :class:`HardNames` of those rows and bounds."""
+    the mobility's pins where it holds; and the :class:`HardNames` of those rows and bounds
+    (with ``HardNames.bound_values`` a function of ``p_sym`` when given)."""
     rows, lows, ups = [], [], []
     row_names: list[str] = []
     bound_names: list[list[str]] = [[] for _ in range(n)]
     lb, ub = ca.SX(ca.DM.ones(n) * -np.inf), ca.SX(ca.DM.ones(n) * np.inf)
+    owned: dict[str, tuple[ca.SX, ca.SX]] = {}  # name -> the bounds it alone puts on x
+
+    def own(name: str, index, lo, up) -> None:
+        lower, upper = owned.setdefault(name, (ca.SX(ca.DM.ones(n) * -np.inf),
+                                               ca.SX(ca.DM.ones(n) * np.inf)))
+        lower[index] = ca.fmax(lower[index], lo)
+        upper[index] = ca.fmin(upper[index], up)
     for e in stack.constraints:
         if not e.holds_at(priority):
             continue
@@ -299,6 +344,7 @@ def _hard_constraints(stack, x, n, priority: int | None):
             up = _independent(term.upper, x, size, f"upper bound of {what}", True)
             lb[sl] = ca.fmax(lb[sl], lo)
             ub[sl] = ca.fmin(ub[sl], up)
+            own(e.task_name, sl, lo, up)
             for names in bound_names[sl]:
                 names.append(e.task_name)
             continue
@@ -318,6 +364,7 @@ def _hard_constraints(stack, x, n, priority: int | None):
         free = stack.mobility_diagonal > ZERO_MOBILITY
         lb = ca.fmax(lb, ca.if_else(free, -np.inf, 0.0))
         ub = ca.fmin(ub, ca.if_else(free, np.inf, 0.0))
+        own(PINNED, slice(0, n), ca.if_else(free, -np.inf, 0.0), ca.if_else(free, np.inf, 0.0))
         for names in bound_names:
             names.append(PINNED)
     if pins and stack.pinned is not None:
@@ -326,13 +373,21 @@ def _hard_constraints(stack, x, n, priority: int | None):
             if axis.size == 1:
                 lb[int(axis[0])] = ca.fmax(lb[int(axis[0])], 0)
                 ub[int(axis[0])] = ca.fmin(ub[int(axis[0])], 0)
+                own(PINNED, int(axis[0]), 0, 0)
                 bound_names[int(axis[0])].append(PINNED)
             else:
                 rows.append(ca.SX(ca.DM(row.reshape(1, -1))))
                 lows.append(ca.SX(0))
                 ups.append(ca.SX(0))
                 row_names.append(PINNED)
-    names = HardNames(tuple(row_names), tuple(tuple(dict.fromkeys(b)) for b in bound_names))
+    values = None
+    if p_sym is not None:
+        columns = list(owned.values())
+        values = ca.Function("bound_values", [p_sym], [
+            ca.densify(ca.horzcat(*[c[0] for c in columns])) if columns else ca.SX(n, 0),
+            ca.densify(ca.horzcat(*[c[1] for c in columns])) if columns else ca.SX(n, 0)])
+    names = HardNames(tuple(row_names), tuple(tuple(dict.fromkeys(b)) for b in bound_names),
+                      tuple(owned), values)
     if rows:
         return ca.vertcat(*rows), ca.vertcat(*lows), ca.vertcat(*ups), lb, ub, names
     return ca.SX(0, n), ca.SX(0, 1), ca.SX(0, 1), lb, ub, names

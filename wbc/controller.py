@@ -72,7 +72,7 @@ import warnings
 import casadi as ca
 import numpy as np
 
-from .checks import all_finite, checked_array
+from .checks import all_finite, as_float_array, check_pose, checked_array
 from .compiler import CompiledStack
 from .errors import (
     InfeasibleError,
@@ -83,6 +83,7 @@ from .errors import (
     WbcError,
 )
 from .fused import FusedWorkspace, compiler_available, why_not_fused
+from .infeasibility import fixed_conflict
 from .jit import jit_compiled
 from .qp import Status
 from .quantities import STATE_QUANTITIES, registry_of
@@ -92,7 +93,7 @@ from .workspace import BackendSpec, Workspace
 
 FALLBACKS = ("hold", "last", "decelerate", "raise")
 # for the tick: module globals, looked up faster than attributes
-_clock, _asarray, _ndarray, _FLOAT = time.perf_counter, np.asarray, np.ndarray, np.dtype(float)
+_clock, _ndarray, _FLOAT = time.perf_counter, np.ndarray, np.dtype(float)
 _NAN = math.nan
 _SOLVED = Status.SOLVED
 DECELERATION = 0.5  # "decelerate": the previous command's share kept per failed tick
@@ -155,16 +156,16 @@ class Controller:
             :class:`RuntimeWarning` if only the compiler is missing, then today's path;
             ``True``: the same, but a stack that cannot be fused is a :class:`~wbc.WbcError`;
             ``False``: today's path. ``self.fused`` says which path is used and
-            ``self.fused_reason`` why not. On the fused path, the returned command and
-            ``last_solution`` are buffers the next tick rewrites (no allocation per tick):
-            copy what you keep.
+            ``self.fused_reason`` why not.
         **options: backend options overriding the profile.
 
     Attributes:
-        last_solution: the :class:`~wbc.Solution` of the last tick. It also carries
-            ``fallback``: ``None`` when the QP was solved, else the policy that produced the
-            command (and its ``message`` says so).
-        last_command: the command returned by the last :meth:`step`.
+        last_solution: the :class:`~wbc.Solution` of the last tick, a snapshot no later tick
+            writes (on the fused path it is copied from the tick's buffers when first read).
+            It also carries ``fallback``: ``None`` when the QP was solved, else the policy that
+            produced the command (and its ``message`` says so).
+        last_command: the array the last :meth:`step` returned (a snapshot, or the caller's
+            ``out``).
         workspace: the :class:`~wbc.Workspace` (parameters, buffers, live backends).
         model_parameters: the parameter names the model stage fills.
         reference_names: the keywords :meth:`step` accepts.
@@ -206,13 +207,19 @@ class Controller:
             except WbcError:  # no symbolic forms, or joints they do not cover: the getters
                 kinematics = "numeric"
         self.kinematics = kinematics
+        conflict = fixed_conflict(self.compiled, self.compiled.defaults)
+        if conflict is not None:
+            label, _, details = conflict
+            raise InfeasibleError(f"wbc.Controller: {label}: {details}, whatever the state "
+                                  "(values known before the first tick: constants and "
+                                  "parameter defaults)")
         self.workspace = self._fused_workspace(fused, backend, profile, warm_start, options)
         self.fused = self.workspace is not None
         if not self.fused:
             if jit is True or (jit == "auto" and compiler_available()):
                 self.compiled = jit_compiled(self.compiled)
             self.workspace = Workspace(self.compiled, backend, profile, warm_start, **options)
-        self.last_solution: Solution | None = None
+        self._last_solution: Solution | None = None
         self.last_command: np.ndarray | None = None
         self._q: np.ndarray | None = None  # views of "q", "v", "dt" in p (set by _plan)
         self._v: np.ndarray | None = None
@@ -225,6 +232,7 @@ class Controller:
         # keyword -> (parameter name, view, allow_inf), cached
         self._references: dict[str, tuple] = {}  # keyword -> see _reference
         self._tick = self._tick_function()
+        stack._controlled = True  # edits after this would not reach the compiled snapshot
         if type(self).step is Controller.step:  # (a subclass's own step stays in charge)
             self.step = self._tick  # type: ignore[method-assign]  # one call less per tick
 
@@ -320,9 +328,10 @@ class Controller:
 
     # ------------------------------------------------------------------ references
     def _reference(self, key: str) -> tuple:
-        """``(name, view, shape, allow_inf, what, paired)`` of reference keyword ``key``
-        (cached): its parameter, the view to write, how to check it, its name in errors, and
-        whether it is a side of a ``"<t>.lower"``/``"<t>.upper"`` pair."""
+        """``(name, view, shape, allow_inf, what, paired, pose)`` of reference keyword ``key``
+        (cached): its parameter, the view to write, how to check it, its name in errors,
+        whether it is a side of a ``"<t>.lower"``/``"<t>.upper"`` pair, and whether it is a
+        pose (a ``(4, 4)`` ``"<t>.target"``, e.g. a :class:`~wbc.tasks.FrameTask`'s)."""
         ref = self._references.get(key)
         if ref is None:
             params = self.compiled.parameters
@@ -334,18 +343,32 @@ class Controller:
                        "with controller.dt)" if key in self.model_parameters else ""))
             _, shape, allow_inf = params[name]
             paired = name.rpartition(".")[2] in ("lower", "upper")
+            pose = shape == (4, 4) and name.endswith(".target")
             ref = self._references[key] = (name, self.workspace.view(name), shape, allow_inf,
-                                           f"reference {key!r} (parameter {name!r})", paired)
+                                           f"reference {key!r} (parameter {name!r})", paired,
+                                           pose)
         return ref
 
     def set_references(self, **references) -> None:
-        """Set references by keyword without solving (checked: name, shape, NaN, inf).
-        All-or-nothing: every value is checked before any is written, so a refused call leaves
-        the controller as it was."""
+        """Set references by keyword without solving (checked: name, shape, type, NaN, inf;
+        a pose — a ``(4, 4)`` ``"<task>.target"``, as a :class:`~wbc.tasks.FrameTask`'s — must
+        be a homogeneous transform whose rotation is one, :func:`wbc.checks.check_pose`, else
+        :class:`~wbc.InvalidValueError`). All-or-nothing: every value is checked before any is
+        written, so a refused call leaves the controller as it was."""
+        if self._last_solution is not None and self._last_solution is self._live_solution:
+            self.last_solution  # noqa: B018  (the fused solution's snapshot, before p changes)
+        self._write_references(references)
+
+    def _write_references(self, references: dict) -> None:
+        """:meth:`set_references` without its snapshot of the last solution (the tick's own
+        use: the solution it writes next replaces that one)."""
         checked, paired = [], False
         for key, value in references.items():
-            name, view, shape, allow_inf, what, pair = self._reference(key)
-            checked.append((name, view, checked_array(value, shape, what, allow_inf)))
+            name, view, shape, allow_inf, what, pair, pose = self._reference(key)
+            value = checked_array(value, shape, what, allow_inf)
+            if pose:
+                check_pose(value, what)
+            checked.append((name, view, value))
             paired |= pair
         if paired:
             self.workspace.check_bound_pairs({name: value for name, _, value in checked})
@@ -353,21 +376,37 @@ class Controller:
             view[...] = value
 
     # ------------------------------------------------------------------ the tick
-    def step(self, q, v=None, **references) -> np.ndarray:
+    @property
+    def last_solution(self) -> Solution | None:
+        solution = self._last_solution
+        if solution is not None and solution is self._live_solution:
+            # the fused tick's own buffers: copied once, when first read
+            solution = self._last_solution = solution.snapshot()
+        return solution
+
+    @last_solution.setter
+    def last_solution(self, solution: Solution | None) -> None:
+        self._last_solution = solution
+
+    def step(self, q, v=None, out=None, **references) -> np.ndarray:
         """One control tick: model stage, references, solve, fallback.
 
         Args:
             q: configuration ``(nq,)``.
             v: velocity ``(nv,)`` (used by ``"v"`` and the drifts; zeros if ``None``).
+            out: an array of shape ``(n,)`` (the decision vector's) to write the command
+                into, or ``None`` for a new array.
             **references: reference values by keyword (see the module docstring).
 
         Returns:
-            The command: the decision vector ``x`` of the solution, or the fallback's.
+            The command: the decision vector ``x`` of the solution, or the fallback's — a new
+            array that no later tick writes (``out`` itself when given), on every path and
+            backend.
 
         (Each controller holds the tick as a closure over its buffers, made once by
         :meth:`_tick_function`; ``controller.step`` is that closure, this method calls it.)
         """
-        return self._tick(q, v, **references)
+        return self._tick(q, v, out, **references)
 
     def _tick_function(self):
         """The tick as a closure over the controller's buffers and the workspace's calls (bound
@@ -378,30 +417,38 @@ class Controller:
         q_view, v_view, needs_v, needs_drift = self._q, self._v, self._needs_v, self._needs_drift
         fillers, zero_v = tuple(self._fillers), self._zero_v
         q_shape, v_shape, nq, nv = self._q_shape, self._v_shape, self.nq, self.nv
-        refuse, set_references, conclude = self._refuse, self.set_references, self._conclude
-        clock, asarray, ndarray, FLOAT, nan = _clock, _asarray, _ndarray, _FLOAT, _NAN
+        refuse, write_references, conclude = self._refuse, self._write_references, self._conclude
+        refuse_out, copyto = self._refuse_out, np.copyto
+        clock, ndarray, FLOAT, nan = _clock, _ndarray, _FLOAT, _NAN
         finite = all_finite
         fused = isinstance(workspace, FusedWorkspace)
+        n = self.compiled.n
         if fused:
             unset, after_failure = workspace._unset, workspace.solve_after_failed_call
             solved_bookkeeping, no_qps = workspace.fused_tick_solved, workspace._no_qps
             call, done, solution, timings = workspace.call_buffers()
             x = solution.x
+            self._live_solution = solution
+        else:
+            self._live_solution = None
 
-        def tick(q, v=None, **references):
+        def tick(q, v=None, out=None, **references):
             # the checks' messages are built only on failure (refuse)
             t0 = clock()
             if type(q) is not ndarray or q.dtype is not FLOAT:  # else asarray would return q
-                q = asarray(q, dtype=float)
+                q = as_float_array(q, "q")
             if q.shape != q_shape or not finite(q):
                 refuse("q", q, nq)
             if v is not None:
                 if type(v) is not ndarray or v.dtype is not FLOAT:
-                    v = asarray(v, dtype=float)
+                    v = as_float_array(v, "v")
                 if v.shape != v_shape or not finite(v):
                     refuse("v", v, nv)
+            if out is not None and (type(out) is not ndarray or out.shape != (n,)
+                                    or out.dtype is not FLOAT):
+                refuse_out(out, n)
             if references:  # before any write: a refused reference leaves the state as it was
-                set_references(**references)
+                write_references(references)
             if q_view is not None:
                 q_view[:] = q
             if needs_v:
@@ -425,18 +472,23 @@ class Controller:
                         solved_bookkeeping()
                     timings.model = t1 - t0
                     timings.solve = t2 - t1
-                    ctrl.last_solution = solution
-                    ctrl.last_command = x
-                    return x
-                return conclude(after_failure(), t1 - t0)
+                    ctrl._last_solution = solution
+                    if out is None:
+                        out = x.copy()
+                    else:
+                        copyto(out, x)
+                    ctrl.last_command = out
+                    return out
+                return conclude(after_failure(), t1 - t0, out)
             t1 = clock()
-            return conclude(workspace.solve(), t1 - t0)
+            return conclude(workspace.solve(), t1 - t0, out)
 
         return tick
 
-    def _conclude(self, solution: Solution, model_time: float) -> np.ndarray:
+    def _conclude(self, solution: Solution, model_time: float,
+                  out: np.ndarray | None = None) -> np.ndarray:
         """The command of a solved (or failed) tick: the solution's ``x``, the partial
-        solution's, or the fallback's; records the tick."""
+        solution's, or the fallback's (a copy, or written into ``out``); records the tick."""
         solution.timings.model = model_time
         if solution.status is _SOLVED:
             command = solution.x
@@ -446,9 +498,13 @@ class Controller:
             command = solution.x
         else:
             command = self._fall_back(solution)
+        if out is None:
+            out = command.copy()  # the solution keeps its own x
+        else:
+            out[:] = command
         self.last_solution = solution
-        self.last_command = command
-        return command
+        self.last_command = out
+        return out
 
     @staticmethod
     def _refuse(name: str, value: np.ndarray, size: int) -> None:
@@ -456,6 +512,13 @@ class Controller:
         if value.shape != (size,):
             raise ShapeError(f"{name} must have shape ({size},), got {value.shape}")
         raise NonFiniteError(f"{name} contains NaN or inf")
+
+    @staticmethod
+    def _refuse_out(out, size: int) -> None:
+        """Raise the error of a bad ``out``."""
+        raise ShapeError(f"out must be a float numpy array of shape ({size},), got "
+                         f"{type(out).__name__} of shape {np.shape(out)}, dtype "
+                         f"{getattr(out, 'dtype', None)}")
 
     def _fall_back(self, solution: Solution) -> np.ndarray:
         policy = self.fallback
@@ -547,9 +610,19 @@ def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
         fn = block.function
         outputs = fn.call([p_in])
         new = ca.Function(f"{fn.name()}_kin", [p], outputs, fn.name_in(), fn.name_out())
-        blocks.append(dataclasses.replace(block, function=new))
+        names = block.hard_names
+        if names is not None and names.bound_values is not None:  # a function of p too
+            bounds = names.bound_values
+            names = dataclasses.replace(names, bound_values=ca.Function(
+                f"{bounds.name()}_kin", [p], bounds.call([p_in])))
+        blocks.append(dataclasses.replace(block, function=new, hard_names=names))
+    residuals = compiled.residuals
+    if residuals is not None:
+        x = ca.SX.sym("x", compiled.n)
+        residuals = ca.Function("residuals_kin", [p, x], residuals.call([p_in, x]))
     quantities = compiled.quantities - replaced.keys()
     if appended:
         quantities = quantities | {"q"} | ({"v"} if needs_v else set())
     return dataclasses.replace(compiled, parameters=params, defaults=defaults,
-                               blocks=tuple(blocks), quantities=frozenset(quantities))
+                               blocks=tuple(blocks), quantities=frozenset(quantities),
+                               residuals=residuals)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,15 +38,15 @@ class LevelResult:
         label: e.g. ``"level 1 (tasks: ee, posture)"``.
         status: backend status.
         x: the decision vector after this QP (zeros if it failed).
-        frozen_rank: rank of the earlier levels' frozen cost rows it was solved under
-            (``-1`` on the fused tick, which keeps every frozen row in a narrow band and
-            computes no rank, see :mod:`wbc.fused`).
+        frozen_rank: rank of the earlier levels' frozen cost rows (with the variables the
+            level fixes, and implicit equalities where a retry found them) whose null space it
+            was solved in (``-1`` on the fused tick, which keeps every frozen row in a narrow
+            band and computes no rank, see :mod:`wbc.fused`).
         iterations: backend iterations (``-1`` if unknown; ``0`` for a level the levels
             above determine completely, which no backend is asked to solve).
         message: the backend's message on failure.
-        frozen_band: relative half-width of the band the frozen rows were kept in: 0 for exact
-            equalities, the stack's ``freeze_tol``, or the workspace's retry band when the
-            exact solve failed (see :class:`~wbc.Stack`).
+        frozen_band: relative half-width of the band the frozen rows were kept in: 0 on the
+            ordinary path (eliminated, exact), :data:`wbc.fused.FROZEN_BAND` on the fused tick.
         diagnosis: the :class:`~wbc.infeasibility.Diagnosis` of a failed QP whose conflict is
             looked for (the backend found it infeasible, or it is the first QP and failed);
             ``None`` otherwise.
@@ -67,6 +67,37 @@ class LevelResult:
     @property
     def conflict(self) -> tuple[str, ...]:
         return () if self.diagnosis is None else self.diagnosis.conflict
+
+
+class TaskResiduals:
+    """Every task's residual at a solution's ``x``, evaluated when first read (one call of the
+    compiled stack's residual function, ≈ 10 µs; nothing on the tick).
+
+    Args:
+        compiled: the :class:`~wbc.CompiledStack` (its ``residuals`` and ``residual_rows``).
+        p: the parameter vector of the tick; x: the solution's decision vector. Arrays the
+            caller does not rewrite (the fused tick's live ones are copied by
+            :meth:`frozen`).
+    """
+
+    __slots__ = ("_compiled", "_p", "_x", "_values")
+
+    def __init__(self, compiled, p: np.ndarray, x: np.ndarray) -> None:
+        self._compiled, self._p, self._x = compiled, p, x
+        self._values: dict[str, np.ndarray] | None = None
+
+    def frozen(self) -> TaskResiduals:
+        """A copy that keeps its own ``p`` and ``x`` (or the values, once evaluated)."""
+        copy = TaskResiduals(self._compiled, self._p.copy(), self._x.copy())
+        copy._values = self._values
+        return copy
+
+    def values(self) -> dict[str, np.ndarray]:
+        if self._values is None:
+            compiled = self._compiled
+            r = np.asarray(compiled.residuals(self._p, self._x), dtype=float).reshape(-1)
+            self._values = {name: r[rows] for name, rows in compiled.residual_rows.items()}
+        return self._values
 
 
 @dataclass(slots=True)
@@ -97,6 +128,7 @@ class Solution:
             none is found. ``message`` details which rows and bounds. Found when ``conflict`` or
             ``message`` is first read (one LP, see :mod:`wbc.infeasibility`), not on the tick.
         diagnosis: the failing QP's :class:`~wbc.infeasibility.Diagnosis` (or ``None``).
+        residuals: task name -> its residual at ``x`` (see :meth:`residuals`).
     """
 
     x: np.ndarray
@@ -110,6 +142,27 @@ class Solution:
     fallback: str | None = None
     diagnosis: Diagnosis | None = None
     notes: list[str] = field(default_factory=list)
+    task_residuals: TaskResiduals | None = None
+
+    def snapshot(self) -> Solution:
+        """A copy that shares no array or list with this solution (the fused tick rewrites its
+        solution's buffers every tick; see :attr:`wbc.Controller.last_solution`)."""
+        return replace(self, x=self.x.copy(),
+                       levels=[replace(level, x=level.x.copy()) for level in self.levels],
+                       scales=dict(self.scales), timings=replace(self.timings),
+                       notes=list(self.notes),
+                       task_residuals=None if self.task_residuals is None
+                       else self.task_residuals.frozen())
+
+    @property
+    def residuals(self) -> dict[str, np.ndarray]:
+        """Task name -> what the task still asks at ``x``, unweighted, in the task's own units:
+        ``expr − target`` of its costs (for a velocity-level :class:`~wbc.tasks.FrameTask`,
+        ``J v − gain·e`` in m/s and rad/s: ``−gain·e`` when nothing moves towards an
+        unreachable target; a scaling level's task at its unscaled target), the signed
+        violation of its soft inequalities (0 when met). Read it to see a task that is not
+        achieved though every QP solved; evaluated when first read. Empty when unknown."""
+        return {} if self.task_residuals is None else self.task_residuals.values()
 
     @property
     def message(self) -> str:

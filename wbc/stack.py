@@ -2,13 +2,23 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from .checks import check_finite, checked_array
+from .checks import (
+    as_float_array,
+    check_finite,
+    check_symbols,
+    checked_array,
+    checked_integer,
+    checked_name,
+    checked_number,
+    checked_shape,
+)
 from .errors import InvalidValueError, ShapeError, WbcError
 from .terms import Cost, Inequality, Task, Term, VariableBounds
 from .variables import Variables
@@ -78,16 +88,12 @@ class Stack:
         min_norm: add a final level minimising ``xᵀ W x`` under everything above, which makes
             the answer unique when the levels leave freedom. Default: on when the last level
             is undamped.
-        rank_tol: relative tolerance of the frozen rows' rank compression (pivots of a
-            rank-revealing QR) and of a scaling level's task rows (singular values).
-        freeze_tol: frozen rows hold ``|a x − a x*| <= freeze_tol·(1 + |a x*|)`` rather than an
-            exact equality. At a vertex (a saturated optimum, as after a scaling LP) the exact
-            equalities and the active bounds meet in one point, which solvers can miss by
-            their last digit and call infeasible. With the default ``0`` the frozen rows are
-            exact, and a level that fails under them is solved once more within a band of
-            1e-7 (``LevelResult.frozen_band`` says so): interior-point and augmented-Lagrangian
-            solvers (clarabel, proxqp) handle thin bands worse than equalities, so the band is
-            not the first try. A positive value uses that band from the start.
+        rank_tol: relative tolerance of the rank of the frozen rows (pivots of a
+            rank-revealing QR: the levels below move in their null space, see
+            :mod:`wbc.workspace`) and of a scaling level's task rows (singular values).
+        freeze_tol: deprecated and ignored (a warning says so): the levels above are kept
+            exactly, by elimination, since 0.2 (it was the half-width of a band the frozen
+            equality rows were held in).
 
     Example:
         >>> import numpy as np, wbc
@@ -130,13 +136,17 @@ class Stack:
         self._x_above: ca.SX | None = None
         self._min_norm = min_norm
         self.rank_tol = float(rank_tol)
-        self.freeze_tol = float(freeze_tol)
+        if freeze_tol:
+            warnings.warn("wbc.Stack: freeze_tol is ignored: strict priorities are kept "
+                          "exactly, by elimination (see wbc.workspace)", DeprecationWarning,
+                          stacklevel=2)
         self.parameters: dict[str, Parameter] = {}
         self.levels: dict[int, list[Entry]] = {}
         self.scaling_levels: set[int] = set()
         self.constraints: list[Entry] = []
         self._names: set[str] = set()
         self._compiled = None
+        self._controlled = False  # a Controller was built from it: edits are refused
         self._workspaces: dict = {}
 
     # ------------------------------------------------------------------ composition
@@ -153,7 +163,11 @@ class Stack:
         Returns:
             The CasADi symbol, to be used in task expressions.
         """
-        shape = _normalise_shape(shape, name)
+        checked_name(name, "name of stack.parameter", optional=False)
+        shape = checked_shape(shape, f"parameter {name!r}")
+        if not isinstance(allow_inf, (bool, np.bool_)):
+            raise InvalidValueError(f"allow_inf of parameter {name!r} must be True or False, "
+                                    f"got {allow_inf!r}")
         if name in self.parameters:
             known = self.parameters[name]
             if known.shape != shape:
@@ -167,7 +181,7 @@ class Stack:
         if default is not None:
             param.default = checked_array(default, shape, f"parameter {name!r}", allow_inf)
         self.parameters[name] = param
-        self._compiled = None
+        self._edited()
         return param.symbol
 
     def quantity(self, name: str, shape: int | tuple[int, ...]) -> ca.SX:
@@ -194,8 +208,19 @@ class Stack:
                 that its costs hold exactly with their targets scaled by ``s`` (an LP), then
                 solve the level with ``s`` fixed (the QP form of SNS).
         """
-        if not isinstance(priority, (int, np.integer)):
-            raise WbcError(f"priority must be an integer, got {priority!r}")
+        what = f"stack.add({getattr(task, 'name', None)!r})"
+        checked_integer(priority, f"priority of {what}", low=None)
+        if not isinstance(weight, ca.SX):
+            weight = checked_number(weight, f"weight of {what}")
+        elif weight.shape != (1, 1):  # per-row weights are the task's (e.g. LinearTask's)
+            raise ShapeError(f"weight of {what}: a symbolic weight must be 1 x 1, got "
+                             f"{weight.shape}; give per-row weights to the task")
+        else:
+            check_symbols(weight, [self.variables.symbol,
+                                   *(p.symbol for p in self.parameters.values())],
+                          f"weight of {what}")
+        if not isinstance(scaling, (bool, np.bool_)):
+            raise InvalidValueError(f"scaling of {what} must be True or False, got {scaling!r}")
         entries = self._entries(task, weight)
         for e in entries:
             if isinstance(e.term, VariableBounds):
@@ -206,7 +231,7 @@ class Stack:
         self.levels.setdefault(int(priority), []).extend(entries)
         if scaling:
             self.scaling_levels.add(int(priority))
-        self._compiled = None
+        self._edited()
         return self
 
     def constrain(self, task: Task, levels=None) -> Stack:
@@ -227,7 +252,7 @@ class Stack:
                 raise WbcError(f"task {e.task_name!r} is a cost; add it with stack.add()")
             e.levels = levels
         self.constraints.extend(entries)
-        self._compiled = None
+        self._edited()
         return self
 
     def set_mobility(self, mobility, levels=None) -> Stack:
@@ -251,6 +276,11 @@ class Stack:
                 pinned joints.
         """
         n = self.variables.n
+        if not isinstance(mobility, (ca.SX, ca.MX, ca.DM)):
+            mobility = as_float_array(mobility, "mobility")
+        elif isinstance(mobility, ca.SX) and mobility.numel() == n:
+            check_symbols(mobility, [self.variables.symbol,
+                                     *(p.symbol for p in self.parameters.values())], "mobility")
         if isinstance(mobility, (ca.SX, ca.MX, ca.DM)):
             if isinstance(mobility, ca.MX):
                 raise WbcError("mobility: MX expressions are not supported, build with ca.SX")
@@ -268,7 +298,7 @@ class Stack:
             self.metric, self.pinned = _metric_and_pins(n, None, mobility)
             self.mobility_diagonal = None
         self.mobility_levels = self._levels(levels, "set_mobility")
-        self._compiled = None
+        self._edited()
         return self
 
     def x_above(self) -> ca.SX:
@@ -284,8 +314,18 @@ class Stack:
         """
         if self._x_above is None:
             self._x_above = ca.SX.sym("x_above", self.variables.n)
-            self._compiled = None
+            self._edited()
         return self._x_above
+
+    def _edited(self) -> None:
+        """Drop the cached compilation after an edit — refused once a :class:`~wbc.Controller`
+        was built from this stack: it compiled a snapshot, and the edit would silently not
+        reach it."""
+        if self._controlled:
+            raise WbcError("this stack was compiled into a wbc.Controller, which keeps what it "
+                           "compiled: an edit now would not reach it. Finish the stack before "
+                           "building controllers, or build a new stack (and controller)")
+        self._compiled = None
 
     @staticmethod
     def _levels(levels, what: str) -> frozenset[int] | None:
@@ -295,7 +335,7 @@ class Stack:
             levels = [levels]
         try:
             chosen = frozenset(int(k) for k in levels)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise WbcError(f"{what}: levels must be None or integer priorities, "
                            f"got {levels!r}") from None
         if not chosen:
@@ -386,16 +426,6 @@ class Stack:
             ws.set(**values)
         return ws.solve()
 
-
-def _normalise_shape(shape, name: str) -> tuple[int, int]:
-    if isinstance(shape, (int, np.integer)):
-        shape = (int(shape), 1)
-    shape = tuple(int(s) for s in shape)
-    if len(shape) == 1:
-        shape = (shape[0], 1)
-    if len(shape) != 2 or min(shape) < 0:
-        raise ShapeError(f"parameter {name!r}: bad shape {shape}")
-    return shape
 
 
 def _metric_and_pins(n: int, metric, mobility) -> tuple[np.ndarray, np.ndarray | None]:

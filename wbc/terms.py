@@ -93,12 +93,15 @@ class Cost(Term):
             (``s·target``), so put drift terms such as ``J̇q̇`` in ``expr``, not here.
         weight: scalar or per-row weights (numbers ≥ 0, or an SX parameter).
         name: used in error messages and solution reports.
+        residual: what :attr:`wbc.Solution.residuals` reports for this term, an expression
+            of ``x`` and the parameters in the task's own units (default ``expr − target``).
     """
 
     expr: Expr
     target: Expr = 0.0
     weight: Expr = 1.0
     name: str | None = None
+    residual: Expr | None = None
 
 
 @dataclass(repr=False)

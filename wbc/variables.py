@@ -6,7 +6,8 @@ from collections.abc import Mapping
 
 import casadi as ca
 
-from .errors import ShapeError, UnknownNameError
+from .checks import MAX_SIZE, checked_name
+from .errors import InvalidValueError, ShapeError, UnknownNameError
 
 
 class Variables:
@@ -24,10 +25,13 @@ class Variables:
 
     Args:
         blocks: mapping ``name -> size`` (insertion order is the layout of ``x``); may also be
-            given as keyword arguments.
+            given as keyword arguments. Names are non-empty strings, sizes positive integers.
     """
 
     def __init__(self, blocks: Mapping[str, int] | None = None, **sizes: int) -> None:
+        if blocks is not None and not isinstance(blocks, Mapping):
+            raise InvalidValueError(f"Variables: blocks must be a mapping name -> size, got "
+                                    f"{type(blocks).__name__} {blocks!r}"[:120])
         merged = dict(blocks or {})
         for name, size in sizes.items():
             if name in merged:
@@ -38,9 +42,11 @@ class Variables:
         self._slices: dict[str, slice] = {}
         start = 0
         for name, size in merged.items():
-            if not isinstance(size, int) or isinstance(size, bool) or size < 1:
-                raise ShapeError(f"variable block {name!r} must have a positive integer size, "
-                                 f"got {size!r}")
+            if not checked_name(name, "a variable block's name", optional=False):
+                raise InvalidValueError("a variable block's name must not be empty")
+            if not isinstance(size, int) or isinstance(size, bool) or not 1 <= size <= MAX_SIZE:
+                raise ShapeError(f"variable block {name!r} must have a positive integer size "
+                                 f"(at most {MAX_SIZE}), got {str(size)[:40]}")
             self._slices[name] = slice(start, start + size)
             start += size
         self.n = start

@@ -6,16 +6,36 @@ buffers that write into them, and one persistent backend per block. The tick is:
 
     for each block (level, scaling LP, min-norm):   # a loop over levels, never over tasks
         evaluate its compiled function into its arrays         (≈ 1–3 µs)
-        append frozen rows of earlier levels (numpy)
+        below the first level: eliminate what the levels above froze (numpy, see below)
         if they leave a single point: that is the level's answer, no solve
         backend.update(...); backend.solve(warm start: its last solution, with the level
                                              above's x in place of its own)
-        on failure under exact frozen rows: once more within a 1e-7 band
+
+Strict priorities by elimination
+--------------------------------
+Level ``k`` keeps every earlier level's optimum: ``E_j x = E_j x_j*`` for the cost rows
+``E_j`` of each level ``j < k`` (the optimal set of a least-squares level is exactly that
+affine set intersected with the feasible set). Those rows are not handed to the backend as
+equalities: the workspace parametrises the affine set, ``x = x0 + N y`` — ``x0`` the level
+above's ``x`` (with the variables this level fixes, ``lb == ub``, at their value), ``N`` an
+orthonormal basis of the null space of the stacked rows (and of the fixed variables' unit
+rows), from a QR factorisation with column pivoting whose rank counts the pivots above
+``rank_tol·|R_00|`` (:class:`~wbc.Stack`) — and the level solves for ``y``. The variable
+bounds become the rows ``lb − x0 <= N y <= ub − x0``. Why: frozen equality rows pass through a
+vertex of the bounds as soon as limits saturate, the QP is then degenerate (dependent active
+constraints, multipliers of 1e7) and solvers return answers 1e-3–1e-2 off or report failures
+that are not there; the reduced QP has no equality rows at all, and ``y = 0`` (the level
+above's optimum) is feasible by construction: the hard rows and frozen soft rows are widened
+by at most what the level above violated them by (its solver's tolerance), so a level below
+the first never fails as infeasible. The reduced QP has the block's size (``N`` is padded
+with zero columns whose variables get a unit Hessian and stay 0), so each backend is set up
+once.
 """
 
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -26,7 +46,7 @@ from .compiler import SCALING_LP, CompiledStack, QPBlock
 from .errors import UnknownNameError, WbcError
 from .infeasibility import Diagnosis
 from .qp import Backend, QPResult, Status
-from .solution import LevelResult, Solution, Timings
+from .solution import LevelResult, Solution, TaskResiduals, Timings
 
 BackendSpec = str | Callable[[], Backend]
 
@@ -37,7 +57,17 @@ except ImportError:  # numpy < 2
     from numpy.core.umath import clip as _clip  # type: ignore[no-redef]
 
 _GESDD, _GEQP3, _ORGQR = get_lapack_funcs(("gesdd", "geqp3", "orgqr"), dtype=np.float64)
-_RETRY_BAND = 1e-7  # relative half-width of the frozen rows when the exact solve failed
+#: How far (relative) the level above's ``x`` may violate a constraint of the level below and
+#: still count as meeting it (the largest default tolerance of the backends is osqp's 1e-5).
+WIDEN_TOL = 1e-4
+#: How close (relative) to a side the level above's ``x`` counts as on it: the side is moved
+#: onto ``x`` (a sliver of the feasible set this thin is what solvers call infeasible).
+SNAP_TOL = 1e-9
+#: After a failed solve, how close (relative) to a side ``x`` above counts as on it when the
+#: level's implicit equalities are looked for (see :func:`_implicit_equalities`).
+RETRY_ACTIVE_TOL = 1e-5
+_FIXED_ABOVE = ("a constraint of this level that the levels above fix completely is violated "
+                "at their optimum")
 _INCONSISTENT = ("the task's equations are inconsistent (target outside the range of its "
                  "Jacobian): no scale s > 0 can hold them")
 
@@ -51,17 +81,25 @@ def _svd(M: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return U, s, Vt
 
 
-def _row_basis(M: np.ndarray, rank_tol: float) -> tuple[int, np.ndarray]:
-    """``(r, Q)``: the rank of ``M`` and, in the first ``r`` columns of ``Q``, an orthonormal
-    basis of its row space, by QR with column pivoting of ``Mᵀ`` (LAPACK geqp3 + orgqr: half
-    the time of an SVD for a tick's few rows). The rank counts the pivots ``|R_ii|`` above
+def _null_space(M: np.ndarray, rank_tol: float, out: np.ndarray) -> int:
+    """Write into the first columns of ``out`` (``n × n``) an orthonormal basis of the null
+    space of ``M`` (``m × n``) and zero the rest; return the rank ``r`` of ``M`` (the basis
+    has ``n − r`` columns). By QR with column pivoting of ``Mᵀ`` (LAPACK geqp3 + orgqr: half the
+    time of an SVD for a tick's few rows); the rank counts the pivots ``|R_ii|`` above
     ``rank_tol·|R_00|`` (and an absolute floor)."""
+    n = M.shape[1]
     qr, _, tau, _, _ = _GEQP3(M.T)
     pivots = qr.diagonal().tolist()  # few: Python beats numpy's per-call cost here
-    tol = max(_ABS_RANK_TOL, rank_tol * abs(pivots[0]))
+    tol = max(_ABS_RANK_TOL, rank_tol * abs(pivots[0])) if pivots else 0.0
     rank = sum(abs(pivot) > tol for pivot in pivots)
-    Q, _, _ = _ORGQR(qr[:, :tau.shape[0]], tau)
-    return rank, Q
+    k = tau.shape[0]
+    reflectors = np.zeros((n, n))
+    reflectors[:, :k] = qr[:, :k]
+    Q, _, _ = _ORGQR(reflectors, tau)
+    d = n - rank
+    out[:, :d] = Q[:, rank:]
+    out[:, d:] = 0.0
+    return rank
 
 
 def make_backend(spec: BackendSpec, profile: str, **options) -> Backend:
@@ -74,6 +112,60 @@ def make_backend(spec: BackendSpec, profile: str, **options) -> Backend:
     if callable(spec):
         return spec()
     raise WbcError(f"backend must be a name or a factory, got {type(spec).__name__}")
+
+
+def _snapped(side: np.ndarray, original: np.ndarray, sign: float) -> np.ndarray:
+    """A reduced QP's lower (``sign`` −1) or upper (+1) sides ``side = original − a·x0``, moved
+    to 0 where ``x0`` violates them by at most :data:`WIDEN_TOL` or meets them within
+    :data:`SNAP_TOL` (both relative): ``y = 0`` is then feasible whenever the level above met
+    them to its solver's tolerance, a side it ends on is exactly active (so that degenerate
+    vertices are recognised, see :func:`_implicit_equalities`), and a real conflict (a
+    constraint of this level only that the level above's optimum violates) stays one."""
+    scale = 1.0 + np.abs(original)  # inf for an infinite side, which stays as it is
+    near = (sign * side >= -WIDEN_TOL * scale) & (sign * side <= SNAP_TOL * scale)
+    return np.where(near & np.isfinite(side), 0.0, side)
+
+
+def _implicit_equalities(state: _BlockState) -> np.ndarray:
+    """The rows (in ``x``) of the constraints that every feasible point of an eliminating
+    block's reduced QP keeps (nearly) active: its implicit equalities. ``y = 0`` is feasible; a
+    row active there (its side within :data:`RETRY_ACTIVE_TOL` of 0, relative: the level above's
+    solver leaves its optimum that far inside a side it ends on, and the sliver between is what
+    solvers call infeasible) holds as an equality on the whole feasible set if and only if some
+    non-negative combination of the active rows, oriented into the feasible side, with a
+    positive weight on it, is zero (Gordan). One LP finds every such row: maximise ``Σ t``
+    over ``0 <= t <= 1``, ``t <= λ``, ``λ >= 0``, ``Σ λ_i s_i g_i = 0``. Runs only when a
+    level failed (milliseconds, scipy's HiGHS)."""
+    from scipy.optimize import linprog
+
+    m, n = state.m_rows, state.N.shape[0]
+    A, lA, uA = state.Ar[:, :n], state.lAr, state.uAr
+    considered = np.concatenate((state.kept_rows, np.ones(n, dtype=bool)))
+    tol = RETRY_ACTIVE_TOL * (1.0 + np.abs(np.concatenate((state.lA[:m], state.lb_x))))
+    lower = (lA >= -tol) & np.isfinite(lA) & considered
+    tol = RETRY_ACTIVE_TOL * (1.0 + np.abs(np.concatenate((state.uA[:m], state.ub_x))))
+    upper = (uA <= tol) & np.isfinite(uA) & considered
+    active = np.flatnonzero(lower | upper)
+    if active.size == 0:
+        return np.zeros((0, n))
+    # each active side as a row g with g·y >= 0 on the feasible side; a row active on both
+    # sides enters twice (it is an equality: both orientations cancel)
+    rows = [(i, A[i]) for i in active if lower[i]] + [(i, -A[i]) for i in active if upper[i]]
+    k = len(rows)
+    G = np.array([g for _, g in rows])
+    # variables [λ (k), t (k)]: maximise Σ t
+    cost = np.concatenate((np.zeros(k), -np.ones(k)))
+    A_eq = np.hstack((G.T, np.zeros((n, k))))
+    A_ub = np.hstack((-np.eye(k), np.eye(k)))  # t − λ <= 0
+    bounds = [(0, None)] * k + [(0, 1)] * k
+    result = linprog(cost, A_ub=A_ub, b_ub=np.zeros(k), A_eq=A_eq, b_eq=np.zeros(n),
+                     bounds=bounds, method="highs")
+    if result.status != 0:
+        return np.zeros((0, n))
+    implicit = sorted({i for (i, _), t in zip(rows, result.x[k:], strict=True) if t > 0.5})
+    # back in x: a bound row is its variable's unit row, the others the block's own rows
+    return np.array([state.A[i, :n] if i < m else np.eye(n)[i - m] for i in implicit]
+                    ).reshape(-1, n)
 
 
 class _BlockState:
@@ -104,15 +196,35 @@ class _BlockState:
         for i, out in enumerate(outputs):
             if out.size:
                 self.buffer.set_res(i, memoryview(out))  # type: ignore[call-arg, arg-type]
-        # Views of the rows the cascade appends each tick (fixed places, made once).
-        soft = slice(top, top + block.n_frozen_soft)
-        eq = slice(soft.stop, soft.stop + block.m_frozen_eq)
+        soft = slice(top, top + block.n_frozen_soft)  # earlier levels' soft rows, appended
         self.soft_rows, self.soft_lA, self.soft_uA = self.A[soft, :n], self.lA[soft], self.uA[soft]
-        self.eq_rows, self.eq_lA, self.eq_uA = self.A[eq, :n], self.lA[eq], self.uA[eq]
-        self.frozen_rank = 0  # frozen equality rows in use; the rest are inert (0, ±inf)
         self.lb_x, self.ub_x = self.lb[:n], self.ub[:n]
         self.qp = (self.H, self.g, self.A, self.lA, self.uA, self.lb, self.ub)
+        self.eliminates = block.n_frozen_cost > 0
+        if self.eliminates:
+            # The reduced QP in w = [y; the block's other variables] that the backend sees
+            # (see the module docstring): its own rows and the frozen soft rows, then the
+            # variable bounds of x as rows in y.
+            m = soft.stop
+            self.m_rows = m
+            self.N = np.zeros((n, n))  # null-space basis, padded with zero columns
+            self.x0 = np.zeros(n)
+            self.Hr = np.zeros((nz, nz))
+            self.gr = np.zeros(nz)
+            self.Ar = np.zeros((m + n, nz))
+            self.lAr = np.full(m + n, -np.inf)
+            self.uAr = np.full(m + n, np.inf)
+            self.lbr = np.full(nz, -np.inf)
+            self.ubr = np.full(nz, np.inf)
+            # rows y = 0 must satisfy: hard rows and frozen soft rows (not own soft rows,
+            # whose slack absorbs, nor a scaling LP's task equalities)
+            self.kept_rows = np.zeros(m, dtype=bool)
+            self.kept_rows[:block.m_hard] = True
+            self.kept_rows[top:m] = True
+            self.qp = (self.Hr, self.gr, self.Ar, self.lAr, self.uAr, self.lbr, self.ubr)
         self.has_frozen_rows = bool(block.n_frozen_cost or block.n_frozen_soft)
+        self.frozen_rank = 0
+        self.conflicting = False  # a row the levels above fix is violated (see _freeze)
         self.backend = backend
         self.ready = False  # backend.setup done
         self.warm: np.ndarray | None = None
@@ -164,6 +276,12 @@ class Workspace:
         self._blocks = [_BlockState(b, n, self.p, self._E,
                                     make_backend(backend, profile, **options))
                         for b in compiled.blocks]
+        caveat = getattr(self._blocks[0].backend, "cascade_caveat", None)
+        if caveat and len(self._blocks) > 1:
+            warnings.warn(f"wbc: {self.backend_name} ({profile} profile) on a stack of "
+                          f"{len(self._blocks)} QPs is not exact where limits saturate; "
+                          f"measured: {caveat}. daqp and quadprog give the exact answer (see "
+                          "the README's backend table)", RuntimeWarning, stacklevel=3)
 
     # ------------------------------------------------------------------ parameters
     @property
@@ -250,139 +368,180 @@ class Workspace:
             t0 = clock()
             state.evaluate()
             # (x is set whenever a block has frozen rows: a solved level precedes it)
-            rank = (self._append_frozen_rows(state, x)  # type: ignore[arg-type]
+            rank = (self._freeze(state, x)  # type: ignore[arg-type]
                     if state.has_frozen_rows else 0)
-            if rank < 0:  # the levels above leave one point, x: nothing to solve
-                assembly += clock() - t0
-                levels.append(LevelResult(block.label, Status.SOLVED,
-                                          x.copy(), -rank, 0))  # type: ignore[union-attr]
-                continue
-            consistent = block.kind != SCALING_LP or self._compress_task_rows(state)
+            consistent = rank < 0 or block.kind != SCALING_LP or self._compress_task_rows(state)
             t1 = clock()
-            if not consistent:
+            result: QPResult | None = None  # None: the feasible set is the point x0
+            if rank < 0:
+                pass
+            elif state.eliminates and state.conflicting:
+                result = QPResult(np.zeros(block.n_z), Status.INFEASIBLE,
+                                  np.zeros(block.m_total), np.zeros(block.n_z),
+                                  message=_FIXED_ABOVE)
+            elif not consistent:
                 result = QPResult(np.zeros(block.n_z), Status.INFEASIBLE, np.zeros(block.m_total),
                                   np.zeros(block.n_z), message=_INCONSISTENT)
             elif state.ready:
                 state.backend.update(*state.qp)
                 warm = state.warm
                 if warm is not None and x is not None:
-                    # the level above's optimum is feasible here, and often near-optimal
+                    # the level above's optimum is feasible here, and often near-optimal (in
+                    # an eliminating block, it is y = 0)
                     warm = warm.copy()
-                    warm[:n] = x
+                    warm[:n] = 0.0 if state.eliminates else x
                 result = state.backend.solve(warm)
             else:
                 state.backend.setup(*state.qp)
                 state.ready = True
                 result = state.backend.solve(None)
-            if (result.status is not Status.SOLVED and consistent and rank
-                    and not self.compiled.freeze_tol):
-                # Exact frozen rows through a vertex of the bounds leave a single feasible point,
-                # which solvers can miss by their last digit: retry within a thin band.
-                band = _RETRY_BAND
-                self._widen_frozen_rows(state, rank, band)
-                state.backend.update(*state.qp)
-                result = state.backend.solve(None)
-            else:
-                band = self.compiled.freeze_tol if rank else 0.0
+            if result is not None and result.status is not Status.SOLVED and state.eliminates \
+                    and consistent and not state.conflicting:
+                # y = 0 is feasible here by construction: a failure is the solver's, at a
+                # degenerate vertex (more constraints active at y = 0 than they leave
+                # directions). Eliminate the implicit equalities too and solve once more,
+                # from a fresh setup (a hot start from the failed active set fails again).
+                implicit = _implicit_equalities(state)
+                if implicit.shape[0]:
+                    rank = self._freeze(state, x, implicit)  # type: ignore[arg-type]
+                if rank < 0:
+                    result = None
+                else:
+                    state.backend.setup(*state.qp)
+                    result = state.backend.solve(None)
             t2 = clock()
-            state.result = result
-            solved.append(state)
             assembly += t1 - t0
             solving += t2 - t1
+            if result is None:  # the levels above (and their vertex) leave one point
+                x = _clip(state.x0, state.lb_x, state.ub_x)
+                if x_above is not None:
+                    x_above[:] = x
+                levels.append(LevelResult(block.label, Status.SOLVED, x.copy(), -rank, 0))
+                continue
+            state.result = result
+            solved.append(state)
             if result.status is not Status.SOLVED:
                 state.warm = None
                 status = result.status
                 # Which hard constraints conflict (one LP, found when first read): when the
                 # backend says infeasible, or when the first QP failed (the command is then a
                 # fallback; some backends stop at their iteration limit on an infeasible
-                # problem).
-                diagnosis = (Diagnosis(block, *state.qp[2:], self.compiled.variables)
+                # problem). Named on the block's own arrays (x, not the reduced y).
+                diagnosis = (Diagnosis(block, *self._with_frozen_rows(state),
+                                       self.compiled.variables, p=self.p)
                              if status is Status.INFEASIBLE or x is None else None)
                 message = f"{block.label}: {result.status.value}" + (
                     f" ({result.message})" if result.message else "") + self._diagnose(state)
                 levels.append(LevelResult(block.label, result.status, np.zeros(n), rank,
-                                          result.iterations, result.message, band, diagnosis))
+                                          result.iterations, result.message, 0.0, diagnosis))
                 break
             z = result.x
             if self.warm_start:
                 state.warm = z
+            z_x = state.x0 + state.N @ z[:n] if state.eliminates else z[:n]
             if block.kind == SCALING_LP:
                 s = min(max(float(z[n]), 0.0), 1.0)
                 scales[block.priority] = s  # type: ignore[index]  # a level's: not None
                 self.p[block.scale_index] = s
-                level_x = z[:n].copy()
+                level_x = z_x.copy()
             else:
                 # Exactly within the bounds: solvers meet them only to their tolerance (daqp
-                # ~1e-11, osqp ~1e-5), and commands and the rows frozen at x must not leave them.
-                x = level_x = _clip(z[:n], state.lb_x, state.ub_x)
+                # ~1e-11, osqp ~1e-5), and commands and the point frozen at x must not leave
+                # them.
+                x = level_x = _clip(z_x, state.lb_x, state.ub_x)
                 if x_above is not None:
                     x_above[:] = x
                 if block.m_soft:
                     self._freeze_soft_rows(state, z[n:])
             levels.append(LevelResult(block.label, result.status, level_x, rank,
-                                      result.iterations, "", band))
+                                      result.iterations, ""))
         partial = x is not None and status is not Status.SOLVED
-        return Solution(np.zeros(n) if x is None else x, status, levels,
-                        self.compiled.variables, scales, Timings(0.0, assembly, solving), message,
-                        partial, diagnosis=levels[-1].diagnosis if levels else None)
+        x = np.zeros(n) if x is None else x
+        residuals = (None if self.compiled.residuals is None
+                     else TaskResiduals(self.compiled, self.p.copy(), x))
+        return Solution(x, status, levels, self.compiled.variables, scales,
+                        Timings(0.0, assembly, solving), message, partial,
+                        diagnosis=levels[-1].diagnosis if levels else None,
+                        task_residuals=residuals)
 
-    def _append_frozen_rows(self, state: _BlockState, x: np.ndarray) -> int:
-        """Write earlier levels' frozen rows below the block's own rows; return the rank of the
-        frozen cost rows, negated when with the fixed variables it determines every variable
-        of the block (which has no slack then): the level's feasible set is the point x."""
+    def _freeze(self, state: _BlockState, x: np.ndarray,
+                implicit: np.ndarray | None = None) -> int:
+        """Keep what the levels above achieved (see the module docstring): append their soft
+        rows at their optimal slacks, and, under frozen cost rows, write the reduced QP in
+        ``y`` (``x = x0 + N y``) into the block's backend arrays. Returns the rank of the
+        frozen rows (with the unit rows of the variables this level fixes), negated when they
+        leave the single point ``x0`` and the block has no other variable: nothing to solve.
+        ``implicit``: more rows ``a`` to keep at ``a x0`` (see :func:`_implicit_equalities`)."""
         block = state.block
         if block.n_frozen_soft:
             state.soft_rows[...] = self._S[:block.n_frozen_soft]
             state.soft_lA[...] = self._lS[:block.n_frozen_soft]
             state.soft_uA[...] = self._uS[:block.n_frozen_soft]
-        if not block.n_frozen_cost:
+        if not state.eliminates:
             return 0
-        # Keep A_j x = A_j x_j* for every earlier level j, as an orthonormal basis of the
-        # stacked rows' row space: backends never see dependent equalities. Variables fixed by
-        # their bounds (lb == ub, e.g. pinned by a zero mobility) are left out of the rows, or
-        # the rows would repeat those bounds.
+        n = self.compiled.n
+        lb, ub = state.lb_x, state.ub_x
+        fixed = lb == ub
+        x0, N = state.x0, state.N
+        x0[:] = x
         E = self._E[:block.n_frozen_cost]
-        fixed = state.lb_x == state.ub_x
-        n_fixed = int(np.count_nonzero(fixed))
-        if n_fixed:
-            E = E * ~fixed
-        rank, Q = _row_basis(E, self.compiled.rank_tol)
-        basis = Q[:, :rank].T
-        rows, lA, uA = state.eq_rows, state.eq_lA, state.eq_uA
-        rows[:rank] = basis
-        if rank < state.frozen_rank:  # rows beyond the rank become inert again
-            rows[rank:state.frozen_rank] = 0.0
-            lA[rank:state.frozen_rank] = -np.inf
-            uA[rank:state.frozen_rank] = np.inf
+        if fixed.any():
+            # a variable this level fixes (a per-level pin) is held at its value: a unit row
+            # of its own, and out of the frozen rows, which would repeat it
+            x0[fixed] = lb[fixed]
+            E = np.vstack((E * ~fixed, np.eye(n)[fixed]))
+        if implicit is not None:
+            E = np.vstack((E, implicit))
+        rank = _null_space(E, self.compiled.rank_tol, N)
         state.frozen_rank = rank
-        # x is within the bounds (see solve): rows frozen at a point outside them would leave
-        # later levels a feasible set a solver can judge empty.
-        rhs = basis @ x
-        lA[:rank] = rhs
-        uA[:rank] = rhs
-        if self.compiled.freeze_tol:
-            self._widen_frozen_rows(state, rank, self.compiled.freeze_tol)
-        if rank + n_fixed == block.n_z and np.array_equal(x[fixed], state.lb_x[fixed]):
-            # x itself meets every row kept and the variables this level fixes (a level-local
-            # pin may fix one that x moved)
+        if rank == n and block.n_z == n:
             return -rank
+        H, g, A, lA, uA = state.H, state.g, state.A, state.lA, state.uA
+        Hr, gr, Ar, lAr, uAr = state.Hr, state.gr, state.Ar, state.lAr, state.uAr
+        m = state.m_rows
+        # w = T u with T = diag(N, I): H ← Tᵀ H T, g ← Tᵀ (H z0 + g), A ← A T, sides − A z0
+        Hxx_N = H[:n, :n] @ N
+        Hr[:n, :n] = N.T @ Hxx_N
+        d = n - rank
+        Hr[range(d, n), range(d, n)] = 1.0  # the padding's variables: unit Hessian, stay 0
+        gr[:n] = N.T @ (H[:n, :n] @ x0 + g[:n])
+        if block.n_z > n:
+            Hr[:n, n:] = N.T @ H[:n, n:]
+            Hr[n:, :n] = Hr[:n, n:].T
+            Hr[n:, n:] = H[n:, n:]
+            gr[n:] = H[n:, :n] @ x0 + g[n:]
+            Ar[:m, n:] = A[:m, n:]
+            state.lbr[n:] = state.lb[n:]
+            state.ubr[n:] = state.ub[n:]
+        Ar[:m, :n] = A[:m, :n] @ N
+        shift = A[:m, :n] @ x0
+        lAr[:m] = lA[:m] - shift
+        uAr[:m] = uA[:m] - shift
+        kept = state.kept_rows
+        lAr[:m][kept] = _snapped(lAr[:m][kept], lA[:m][kept], -1.0)
+        uAr[:m][kept] = _snapped(uAr[:m][kept], uA[:m][kept], 1.0)
+        Ar[m:, :n] = N  # the bounds of x as rows in y
+        lAr[m:] = _snapped(lb - x0, lb, -1.0)
+        uAr[m:] = _snapped(ub - x0, ub, 1.0)
+        # Rows the levels above determine completely (no y in them): inert when x0 meets them,
+        # a conflict with the levels above when it does not (backends skip such zero rows).
+        dead = np.abs(Ar).max(axis=1) <= _ABS_RANK_TOL * (1.0 + np.concatenate(
+            (np.abs(A[:m]).max(axis=1, initial=0.0), np.ones(n))))
+        dead[:m] &= kept
+        state.conflicting = bool(np.any(((lAr > 0.0) | (uAr < 0.0)) & dead))
+        lAr[dead] = -np.inf
+        uAr[dead] = np.inf
         return rank
 
-    @staticmethod
-    def _widen_frozen_rows(state: _BlockState, rank: int, tol: float) -> None:
-        """Turn the ``rank`` frozen equalities ``a x = c`` into ``|a x − c| <= tol·(1 + |c|)``."""
-        c = state.eq_lA[:rank].copy()
-        band = tol * (1.0 + np.abs(c))
-        state.eq_lA[:rank] = c - band
-        state.eq_uA[:rank] = c + band
-
     def _compress_task_rows(self, state: _BlockState) -> bool:
-        """Replace a scaling LP's equality rows ``[A, −t] z = −r0`` by an orthonormal basis of
-        their row space (rank-deficient tasks would hand the backend dependent equalities).
-        Returns ``False`` if the rows are inconsistent."""
+        """Replace a scaling LP's equality rows ``[A, −t] z = −r0`` (in the arrays the backend
+        sees: reduced ones under frozen rows) by an orthonormal basis of their row space
+        (rank-deficient tasks would hand the backend dependent equalities). Returns ``False``
+        if the rows are inconsistent."""
         block = state.block
         rows = slice(block.m_hard, block.m_hard + block.m_task)
-        M, rhs = state.A[rows], state.lA[rows]
+        A, lA, uA = state.qp[2:5]
+        M, rhs = A[rows], lA[rows].copy()
         U, sv, Vt = _svd(M)
         rank = int(np.count_nonzero(sv > max(_ABS_RANK_TOL,
                                              self.compiled.rank_tol * float(sv[0]))))
@@ -392,10 +551,10 @@ class Workspace:
         c /= sv[:rank]  # the rows Vt = Σ⁻¹ Uᵀ M take the right-hand side Σ⁻¹ Uᵀ rhs
         M[:rank] = Vt[:rank]
         M[rank:] = 0.0
-        state.lA[rows][:rank] = c
-        state.uA[rows][:rank] = c
-        state.lA[rows][rank:] = -np.inf
-        state.uA[rows][rank:] = np.inf
+        lA[rows][:rank] = c
+        uA[rows][:rank] = c
+        lA[rows][rank:] = -np.inf
+        uA[rows][rank:] = np.inf
         return True
 
     def _freeze_soft_rows(self, state: _BlockState, slack: np.ndarray) -> None:
@@ -407,6 +566,25 @@ class Workspace:
         self._S[dest] = state.A[own, :n]
         self._lS[dest] = state.lA[own] + slack
         self._uS[dest] = state.uA[own] + slack
+
+    def _with_frozen_rows(self, state: _BlockState) -> tuple[np.ndarray, np.ndarray,
+                                                            np.ndarray, np.ndarray, np.ndarray]:
+        """``(A, lA, uA, lb, ub)`` of the block in ``x``, the levels above's optimum written as
+        equality rows (an orthonormal basis of their cost rows, at ``x0``) into the rows the
+        compiler keeps for them: what :class:`~wbc.infeasibility.Diagnosis` names a conflict
+        with. Only for a failed QP: the tick eliminates these rows instead."""
+        A, lA, uA = state.A.copy(), state.lA.copy(), state.uA.copy()
+        block = state.block
+        if state.eliminates:
+            E = self._E[:block.n_frozen_cost] * (state.lb_x != state.ub_x)
+            _, sv, Vt = _svd(E)
+            rank = int(np.count_nonzero(sv > max(_ABS_RANK_TOL,
+                                                 self.compiled.rank_tol * float(sv[0]))))
+            rows = slice(block.m_top + block.n_frozen_soft,
+                         block.m_top + block.n_frozen_soft + rank)
+            A[rows, :self.compiled.n] = Vt[:rank]
+            lA[rows] = uA[rows] = Vt[:rank] @ state.x0
+        return A, lA, uA, state.lb, state.ub
 
     def _diagnose(self, state: _BlockState) -> str:
         """Name the culprit of a failure when the data itself is contradictory."""
