@@ -62,6 +62,7 @@ import time
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -147,12 +148,13 @@ def build_stack(robot, kind: str, gain: float = 0.5) -> tuple[wbc.Stack, tuple[s
     elif kind in ("three", "pose3"):
         stack.add(FrameTask(robot, "ee", gain=gain, position_only=True, name="position"),
                   priority=0)
+        name = "orientation" if kind == "three" else "pose"
         second = (FrameTask(robot, "ee", gain=gain, weight=[0, 0, 0, 1, 1, 1],
-                            name="orientation") if kind == "three" else
-                  FrameTask(robot, "ee", gain=gain, name="pose"))
+                            name=name) if kind == "three" else
+                  FrameTask(robot, "ee", gain=gain, name=name))
         stack.add(second, priority=1)
         stack.add(posture, priority=2)
-        frames = ("position", second.name)
+        frames = ("position", name)
     else:
         raise ValueError(f"unknown stack kind {kind!r}")
     stack.constrain(ConfigurationLimit(robot, gain=0.5, name="position_limits"))
@@ -238,12 +240,12 @@ class Cell:
 
     family: str
     label: str
-    robot: Callable[[], object]
+    robot: Callable[[], wbc.robots.Robot]
     kind: str
     gain: float
     dt: float
-    states: Callable[[object], Iterator] | None = None
-    loops: Callable[[object], Iterator] | None = None
+    states: Callable[[wbc.robots.Robot], Iterator] | None = None
+    loops: Callable[[wbc.robots.Robot], Iterator] | None = None
 
 
 def cells(states: int, seed: int) -> dict[str, list[Cell]]:
@@ -260,8 +262,8 @@ def cells(states: int, seed: int) -> dict[str, list[Cell]]:
                     q = random_configuration(rng, robot)
                     T = moved(rng, robot.frame_pose(q, "ee"), None, (0.25, 0.75))
                     yield f"#{i}", q, T
-            out["random"].append(Cell("random", f"{name}/{kind}", lambda n=name:
-                                      wbc.robots.load(n), kind, 0.5, DT, states=independent))
+            out["random"].append(Cell("random", f"{name}/{kind}", partial(wbc.robots.load, name),
+                                      kind, 0.5, DT, states=independent))
 
     arms = [(arm, base) for arm in ARMS for base in distinct_bases()]
     ticks = max(5, -(-states // (len(arms) * 4)))
@@ -270,7 +272,7 @@ def cells(states: int, seed: int) -> dict[str, list[Cell]]:
             for target_name, T in saturating_targets(robot).items():
                 yield target_name, robot.neutral(), T, ticks
         out["saturating"].append(Cell("saturating", f"{arm}@{base}/two",
-                                      lambda a=arm, b=base: make_arm_robot(a, b), "two", 0.5,
+                                      partial(make_arm_robot, arm, base), "two", 0.5,
                                       LOOP_DT, loops=saturating))
 
     ticks3 = 25
@@ -282,8 +284,9 @@ def cells(states: int, seed: int) -> dict[str, list[Cell]]:
                 q0 = random_configuration(rng, robot)
                 T = moved(rng, robot.frame_pose(q0, "ee"), rng.uniform(1.0, 2.5), (0.3, 1.0))
                 yield f"loop {i}", q0, T, ticks3
-        out["priorities"].append(Cell("priorities", f"{name}/pose3", lambda n=name:
-                                      wbc.robots.load(n), "pose3", 5.0, LOOP_DT, loops=far))
+        out["priorities"].append(Cell("priorities", f"{name}/pose3",
+                                      partial(wbc.robots.load, name), "pose3", 5.0, LOOP_DT,
+                                      loops=far))
     return out
 
 
@@ -360,6 +363,13 @@ def active_bounds(referee: wbc.Controller, robot, v: np.ndarray) -> tuple[bool, 
     return bool(vel.any()), bool(pos.any())
 
 
+def _last_solution(controller: wbc.Controller) -> wbc.Solution:
+    """The solution of ``controller``'s last step (a step sets it)."""
+    solution = controller.last_solution
+    assert solution is not None
+    return solution
+
+
 def run_cell(cell: Cell, variants: list[str], tallies: dict[str, Tally],
              referee: RefereeTally) -> None:
     """Solve every state of ``cell`` with the referees and every variant (controllers built
@@ -368,7 +378,7 @@ def run_cell(cell: Cell, variants: list[str], tallies: dict[str, Tally],
     stacks = [build_stack(robot, cell.kind, cell.gain) for _ in range(len(variants) + 2)]
     frames = stacks[0][1]
     refs = [make_referee(robot, stacks[i][0], b, cell.dt) for i, b in enumerate(REFEREES)]
-    ctrls = []
+    ctrls: list[wbc.Controller | wbc.WbcError] = []
     for i, spec in enumerate(variants):
         try:
             ctrls.append(make_controller(robot, stacks[i + 2][0], spec, cell.dt))
@@ -379,7 +389,7 @@ def run_cell(cell: Cell, variants: list[str], tallies: dict[str, Tally],
         targets = {name: T for name in frames}
         answers = []
         for ref in refs:
-            answers.append((ref.step(q, **targets).copy(), ref.last_solution.ok))
+            answers.append((ref.step(q, **targets).copy(), _last_solution(ref).ok))
         (v_ref, ok_a), (v_b, ok_b) = answers
         where = f"{cell.label} {label}"
         referee.states += 1
@@ -404,7 +414,7 @@ def run_cell(cell: Cell, variants: list[str], tallies: dict[str, Tally],
                 if ok_a and ok_b and not isinstance(ctrl, Exception):  # referees disagree
                     try:
                         ctrl.step(q, **targets)
-                        tally.failed_unrefereed += not ctrl.last_solution.ok
+                        tally.failed_unrefereed += not _last_solution(ctrl).ok
                     except Exception:
                         tally.failed_unrefereed += 1
                 continue
@@ -423,7 +433,7 @@ def run_cell(cell: Cell, variants: list[str], tallies: dict[str, Tally],
                 tally.first_false_failure = tally.first_false_failure or f"{where}: {err}"
                 continue
             tally.ticks.append(time.perf_counter() - t0)
-            solution = ctrl.last_solution
+            solution = _last_solution(ctrl)
             dev = float(np.max(np.abs(v - v_ref)))
             tally.deviations.append(dev)
             if dev > tally.worst[0]:

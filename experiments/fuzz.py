@@ -355,7 +355,7 @@ def constructor_specs() -> dict:
     robot = wbc.robots.load("omni4_arm6")
     nv, n = robot.nv, 4
     ur5 = wbc.robots.urdf_path("ur_description/urdf/ur5_robot.urdf")
-    ur5_model = arms.load_urdf_model(ur5)
+    ur5_model = arms.load_urdf_model(str(ur5))
     ctrl = robot_controller(robot, "daqp", fused=False)
     target = robot.frame_pose(robot.neutral(), "ee").copy()
 

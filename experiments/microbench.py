@@ -25,6 +25,7 @@ import json
 import time
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -83,7 +84,7 @@ def run(ticks: int = 1000, warmup: int = 50, backends: list[str] | None = None,
         for params in seq[warmup:]:
             reference.set(**params)
             ref_x.append(reference.solve().x)
-    report = {"machine": describe_machine(), "ticks": ticks, "jit": jit, "problem":
+    report: dict[str, Any] = {"machine": describe_machine(), "ticks": ticks, "jit": jit, "problem":
               f"{M_TASK}x{N_BASE + N_ARM} task + posture + damping + bounds", "backends": {}}
     runs = [(name, name) for name in names]
     if "daqp" in names and jit and compiler_available():
@@ -102,7 +103,7 @@ def run(ticks: int = 1000, warmup: int = 50, backends: list[str] | None = None,
             failures += not sol.ok
             if ref_x:
                 errors.append(float(np.max(np.abs(sol.x - ref_x[k - warmup]))))
-        entry = {
+        entry: dict[str, Any] = {
             "assembly_us": _stats(assembly), "solve_us": _stats(solve),
             "tick_us": _stats(np.add(assembly, solve)), "failures": failures,
             "max_abs_diff_vs_reference": max(errors) if errors else None,

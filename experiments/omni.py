@@ -36,10 +36,12 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 import wbc.robots as robots
+from wbc.robots.omni import OmniBase
 from wbc.robots.omni_control import OmniForceControl, OmniPositionControl
 from wbc.robots.omni_dynamics import OmniDynamics
 from wbc.sim import Simulation
@@ -52,7 +54,7 @@ from .study import Claim, StudyResult, replay_timing, save_figure, study_main
 __all__ = ["METHODS", "PARAMETERS", "SCENARIOS", "main", "run", "simulate"]
 
 #: every value the study chose (the paper gives none of them except the masses and geometry).
-PARAMETERS = {
+PARAMETERS: dict[str, Any] = {
     "dt_s": 0.01,  # control period; the servos run at 1 ms inside (10 sub-steps)
     "substeps": 10,
     "mu": 0.3,  # wheel-floor friction coefficient (hard omni rollers on a smooth floor)
@@ -130,6 +132,7 @@ def simulate(robot, scenario: str, method: str, backend: str = "daqp", substeps:
     errors = dict(gain_error=p["gain_error"], torque_noise=p["torque_noise_Nm"],
                   radius_error=p["radius_error"], mu=p["mu"], substeps=substeps,
                   arm_velocity=arm_swing(seconds, p["arm_pan_rad"]))
+    controller: OmniPositionControl | _Recording
     if method in POSITION_CONTROL:
         present, servo = POSITION_CONTROL[method]
         two_motors = [False, True, False, True] if scenario == "y" else None
@@ -199,7 +202,9 @@ class _Recording:
     """Wraps a force controller to record the wrench and normal forces of every tick."""
 
     def __init__(self, controller: OmniForceControl) -> None:
-        self.controller, self.wrench, self.forces = controller, [], []
+        self.controller = controller
+        self.wrench: list[np.ndarray] = []
+        self.forces: list[np.ndarray] = []
 
     @property
     def last_solution(self):
@@ -262,7 +267,7 @@ def _position_claims(numbers: dict, method: str, suffix: str, reading: str) -> l
 def sweep(robot, backend: str, substeps: int) -> dict:
     """``scenario -> μ -> distribution -> total slip [m]`` over :data:`PARAMETERS`'s
     ``"sweep_mu"``: does the ranking of the distributions depend on the floor?"""
-    out = {}
+    out: dict[str, dict] = {}
     for scenario in SCENARIOS:
         out[scenario] = {}
         for mu in PARAMETERS["sweep_mu"]:
@@ -439,7 +444,11 @@ contact forces differ from τᵢ/r by the rotors' inertia and the servo errors.
 def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     robot = robots.load("omni4_arm6")
     substeps = 5 if quick else PARAMETERS["substeps"]
-    runs, numbers, states = {}, {}, []
+    base = robot.base
+    assert isinstance(base, OmniBase)  # the catalogue's omni4_arm6
+    runs: dict[str, dict] = {}
+    numbers: dict[str, dict] = {}
+    states: list = []
     for scenario, (direction, _) in SCENARIOS.items():
         runs[scenario], numbers[scenario] = {}, {}
         for method in METHODS:
@@ -447,11 +456,11 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
                                                          substeps)
             s = series(simulated, references)
             if method in DISTRIBUTIONS:
-                s["_raw"] = {"command": simulated.command, "J": robot.base.jacobian,
+                s["_raw"] = {"command": simulated.command, "J": base.jacobian,
                              "wrench": controller.wrench, "forces": controller.forces}
                 # what the distribution planned: |τ_i| / (μ f_i r) of the commanded torques
                 s["planned_utilisation"] = np.array([
-                    ref.friction_utilisation(tau, forces, robot.base.radius, PARAMETERS["mu"])
+                    ref.friction_utilisation(tau, forces, base.radius, PARAMETERS["mu"])
                     for tau, forces in zip(simulated.command, controller.forces, strict=True)])
                 if method == "proportional":
                     states += [(q, v, references(t)) for q, v, t in zip(

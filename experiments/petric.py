@@ -87,7 +87,7 @@ def arm_stack(robot, lam: float = PETRIC_LAMBDA, kp: float = KP, k_posture: floa
     ``"posture"`` (gain ``K_n·dt``) towards the centre of the arm's joint range.
 
     ``projector="exact"``: two levels — the task damped by ``ρ² = λ``, then the posture under
-    the task's rows (DESIGN math note 3: the cascade adds exactly ``(I − J⁺J) q̇_n``).
+    the task's rows (docs/DESIGN.md, math note 3: the cascade adds exactly ``(I − J⁺J) q̇_n``).
     ``projector="damped"`` (eq. 26 as printed): one level, the task plus the posture weighted
     by ``λ`` — ``min ||J q̇ − u||² + λ||q̇ − q̇_n||²``, whose minimiser is
     ``J#u + (I − J#J) q̇_n`` (see :mod:`wbc.solvers.reference_petric_arm`)."""
@@ -179,7 +179,7 @@ class DecoupledController:
         self.driver = _FieldDriver(robot, field)
         self.nb = int(robot.nv_base)
         self.move_base = True
-        self.last_solution = None
+        self.last_solution: wbc.Solution | None = None
 
     def step(self, q, v=None, **references) -> np.ndarray:
         command = np.array(self.arm.step(q, v, **references))
@@ -197,7 +197,7 @@ class WholeBodyController:
                  dt: float = DT) -> None:
         self.qp = wbc.Controller(robot, whole_body_stack(robot, dt=dt), backend=backend, dt=dt)
         self.driver = _FieldDriver(robot, field)
-        self.last_solution = None
+        self.last_solution: wbc.Solution | None = None
 
     def step(self, q, v=None, **references) -> np.ndarray:
         base = self.driver.base_command(q)
@@ -580,7 +580,8 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     runs: dict = {}
     for name in SCENARIOS:
         runs[name] = {}
-        methods = [("decoupled", decoupled, True), ("whole_body", whole_body, True)]
+        methods: list[tuple[str, DecoupledController | WholeBodyController, bool]] = [
+            ("decoupled", decoupled, True), ("whole_body", whole_body, True)]
         if name == "forward":
             methods.append(("fixed_base", decoupled, False))
         if name in EQ26_SCENARIOS:
@@ -594,7 +595,9 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     decoupled.move_base = True
     slices = _field_slices(field)
     modes = _mode_timing(VelocityField(), 300 if quick else 2000)
-    timing, timing_wb, failed = {}, {}, {}
+    timing: dict[str, dict] = {}
+    timing_wb: dict[str, dict] = {}
+    failed: dict[str, int] = {}
     ticks = 50 if quick else 300
     for b in available_backends():
         for label, make, out in (("decoupled", DecoupledController, timing),

@@ -37,6 +37,7 @@ import argparse
 import json
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -157,11 +158,12 @@ def replay(robot, kind: str, backends: list[str], run: dict, warmup: int,
     ``kinematics`` and ``jit`` are the :class:`wbc.Controller` options."""
     controllers = {b: wbc.Controller(robot, build_stack(robot, kind), backend=b, dt=DT,
                                      kinematics=kinematics, jit=jit) for b in backends}
-    samples = {b: {"tick": [], "kinematics": [], "assembly": [], "solve": [], "python": []}
-               for b in backends}
-    ok = {b: [] for b in backends}
-    partial = {b: [] for b in backends}
-    diff = {b: [] for b in backends}
+    samples: dict[str, dict[str, list[float]]] = {
+        b: {"tick": [], "kinematics": [], "assembly": [], "solve": [], "python": []}
+        for b in backends}
+    ok: dict[str, list[bool]] = {b: [] for b in backends}
+    partial: dict[str, list[bool]] = {b: [] for b in backends}
+    diff: dict[str, list[float]] = {b: [] for b in backends}
     for k, ((q, v), T) in enumerate(zip(run["states"], run["targets"], strict=True)):
         refs = _references(kind, T)
         for i in range(len(backends)):
@@ -173,6 +175,7 @@ def replay(robot, kind: str, backends: list[str], run: dict, warmup: int,
             if k < warmup:
                 continue
             sol, own = ctrl.last_solution, samples[backend]
+            assert sol is not None  # set by step()
             own["tick"].append(elapsed * 1e6)
             own["kinematics"].append(sol.timings.model * 1e6)
             own["assembly"].append(sol.timings.assembly * 1e6)
@@ -251,9 +254,10 @@ def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, w
         jit: bool = True, progress=None) -> dict:
     """The whole study; returns the JSON-able report. ``progress(done, total, what)`` is called
     after each robot × stack and each chain size."""
-    report = {"machine": describe_machine(), "dt_s": DT, "ticks": ticks, "warmup": warmup,
-              "kinematics": kinematics, "jit": jit, "reference": "/".join(REFERENCE),
-              "results": {}, "scaling": {}}
+    report: dict[str, Any] = {
+        "machine": describe_machine(), "dt_s": DT, "ticks": ticks, "warmup": warmup,
+        "kinematics": kinematics, "jit": jit, "reference": "/".join(REFERENCE),
+        "results": {}, "scaling": {}}
     combos = [(r, s) for r in robots for s in stacks]
     total = len(combos) + len(scaling_joints)
     for i, (name, kind) in enumerate(combos, start=1):
@@ -264,10 +268,10 @@ def run(robots: list[str], stacks: list[str], backends: list[str], ticks: int, w
         if progress:
             progress(i, total, f"{name} / {kind}")
     for j, n in enumerate(scaling_joints, start=1):
-        robot = serial_chain(n)
+        chain = serial_chain(n)
         # start bent (the straight chain is singular)
-        ref = reference_run(robot, "one_level", warmup + scaling_ticks, np.full(n, 0.3))
-        for backend, result in replay(robot, "one_level", backends, ref, warmup, kinematics,
+        ref = reference_run(chain, "one_level", warmup + scaling_ticks, np.full(n, 0.3))
+        for backend, result in replay(chain, "one_level", backends, ref, warmup, kinematics,
                                       jit).items():
             report["scaling"].setdefault(backend, {})[str(n)] = {
                 "stats": result["stats"], "success_rate": result["success_rate"],

@@ -5,7 +5,7 @@ Robot ``mpo700_lwr4`` (Neobotix MPO700 + KUKA LWR-IV). Five target poses of the 
 
 * ``pinv`` — the whole-body damped pseudo-inverse of eq. 8 (one level, ``ρ``, no mobility);
 * ``proposed`` — eq. 9: the ψ-shared task (per-tick mobility on the task's level) and the
-  dexterous posture in the null space (exact weighted QP form, math note 3);
+  dexterous posture in the null space (exact weighted QP form, docs/DESIGN.md, math note 3);
 * ``compensated`` — eq. 9 plus eq. 14: the arm makes up for the base velocity the steering
   controller will not deliver.
 
@@ -102,9 +102,9 @@ class SorourController:
         self.steering = steering_controller(robot, backend)
         self.compensation = (ArmCompensation(robot.nv - N_BASE, backend=backend)
                              if variant == "compensated" else None)
-        self.last_solution = None
+        self.last_solution: wbc.Solution | None = None
         self.psi = math.nan
-        self.tick_parts = {}
+        self.tick_parts: dict[str, float] = {}
 
     def step(self, q, v=None, ee=None) -> np.ndarray:
         clock = time.perf_counter

@@ -141,8 +141,7 @@ def model_discrepancy(robot, model=None, configurations: int = 20, seed: int = 0
     ranges = np.array([model.jnt_range[model.joint(name).id] for name in joint_names(robot)])
     worst["joint_range"] = float(max(np.abs(ranges[:, 0] - lower).max(),
                                      np.abs(ranges[:, 1] - upper).max()))
-    worst["nq"] = (int(model.nq), int(robot.model.nq))
-    return worst
+    return {**worst, "nq": (int(model.nq), int(robot.model.nq))}
 
 
 def joint_names(robot) -> list[str]:

@@ -50,6 +50,7 @@ import json
 import time
 import warnings
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -115,6 +116,24 @@ def build_wbc(robot, backend: str, jit: bool = True, kinematics: str = "compiled
     return controller
 
 
+class RivalLoop(Protocol):
+    """What the study code needs of a rival library's loop class (see :class:`PinkLoop`)."""
+
+    name: str
+    requirement: str
+    install_hint: str
+
+    def __init__(self, robot, solver: str) -> None: ...
+
+    def tick(self, q: np.ndarray, target=None) -> np.ndarray: ...
+
+    @staticmethod
+    def problem_notes() -> dict: ...
+
+    @staticmethod
+    def target(T: np.ndarray): ...
+
+
 class PinkLoop:
     """Pink's side: configuration, tasks, limits; :meth:`tick` is what is timed.
 
@@ -169,7 +188,8 @@ def _rotation_distance(Ra: np.ndarray, Rb: np.ndarray) -> float:
     return float(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
-def run_backend(backend: str, ticks: int, jit: bool = True, rival: type | None = None) -> dict:
+def run_backend(backend: str, ticks: int, jit: bool = True,
+                rival: type[RivalLoop] | None = None) -> dict:
     """The closed loops on one backend, interleaved tick by tick (rotating their order), plus
     untimed agreement checks at wbc's state (see the module docstring). ``rival`` is the other
     library's loop class (default :class:`PinkLoop`)."""
@@ -314,7 +334,7 @@ def markdown_table(results: dict, rival: str = "pink") -> str:
     return "\n".join(rows)
 
 
-def main(argv: list[str] | None = None, rival: type | None = None) -> int:
+def main(argv: list[str] | None = None, rival: type[RivalLoop] | None = None) -> int:
     """The study against ``rival`` (a loop class like :class:`PinkLoop`, the default)."""
     rival = PinkLoop if rival is None else rival
     other = rival.name

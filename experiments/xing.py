@@ -20,11 +20,11 @@ The QP (:func:`amp_stack`), over ``q̈`` (nv):
 
 Where the paper's greedy loop enables the base as soon as the arm's SNS fails (and then
 distributes motion by a minimum-norm pseudo-inverse over all joints), the cascade first finds
-the largest feasible task scale over all joints (never smaller than SNS's: DESIGN math note 4),
-then moves the base as little away from its transition value as that scale allows, then
-pursues the manipulability objective within the remaining freedom and the bounds (where SNS
-scales it by one β). Where the arm alone can do the task with no bound active, the two are the
-same (tests/test_xing_equivalence.py).
+the largest feasible task scale over all joints (never smaller than SNS's: docs/DESIGN.md,
+math note 4), then moves the base as little away from its transition value as that scale
+allows, then pursues the manipulability objective within the remaining freedom and the bounds
+(where SNS scales it by one β). Where the arm alone can do the task with no bound active, the
+two are the same (tests/test_xing_equivalence.py).
 """
 
 from __future__ import annotations
@@ -38,9 +38,9 @@ import numpy as np
 
 import wbc
 import wbc.robots as robots
-from wbc.errors import InvalidValueError
+from wbc.errors import InvalidValueError, WbcError
 from wbc.jit import compiled_c
-from wbc.quantities import registry_of
+from wbc.quantities import QuantityRegistry, registry_of
 from wbc.sim import Simulation
 from wbc.sim.actuation import Actuation
 from wbc.solvers import available_backends
@@ -108,6 +108,14 @@ def cartesian_command(pose, J, drift, v, target, target_velocity, target_acceler
     J_r, drift_r = J[:r, :], drift[:r]
     command = (target_acceleration[:r] + kd * (target_velocity[:r] - J_r @ v) + kp * error)
     return J_r, drift_r, command
+
+
+def _symbolic(registry: QuantityRegistry, name: str) -> ca.Function:
+    """The CasADi function of the robot's model quantity ``name``."""
+    build = registry.get(name).symbolic
+    if build is None:
+        raise WbcError(f"the robot has no symbolic form of {name!r}")
+    return build()
 
 
 def _base_slice(robot) -> slice:
@@ -200,9 +208,9 @@ class ClosedFormPlanner:
         target = ca.SX.sym("target", 4, 4)
         target_velocity, target_acceleration = ca.SX.sym("tv", 6), ca.SX.sym("ta", 6)
         kd, kp = ca.SX.sym("kd", setup.rows), ca.SX.sym("kp", setup.rows)
-        pose = registry.get("pose[ee]").symbolic()(q)
-        J = registry.get("J[ee]").symbolic()(q)
-        drift = registry.get("Jdot_v[ee]").symbolic()(q, v)
+        pose = _symbolic(registry, "pose[ee]")(q)
+        J = _symbolic(registry, "J[ee]")(q)
+        drift = _symbolic(registry, "Jdot_v[ee]")(q, v)
         J_r, drift_r, xdd = cartesian_command(pose, J, drift, v, target, target_velocity,
                                               target_acceleration, kd, kp, setup.rows)
         outputs = [ca.densify(o) for o in (J_r, drift_r, xdd, *arm_jacobian_derivatives(robot)(
@@ -220,10 +228,11 @@ class ClosedFormPlanner:
         self._outputs = [np.zeros(function.size_out(i), order="F")
                          for i in range(function.n_out())]
         self._buffer, self._evaluate = function.buffer()
+        # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res)
         for i, array in enumerate(self._inputs):
-            self._buffer.set_arg(i, memoryview(array))
-        for i, array in enumerate(self._outputs):
-            self._buffer.set_res(i, memoryview(array.reshape(-1, order="F")))
+            self._buffer.set_arg(i, memoryview(array))  # type: ignore[call-arg, arg-type]
+        for i, out in enumerate(self._outputs):
+            self._buffer.set_res(i, memoryview(out.reshape(-1, order="F")))  # type: ignore[call-arg, arg-type]
         lim = robot.limits
         self.q_min = np.concatenate([np.full(self.n_base, -np.inf), lim.q_lower[-self.n_arm:]])
         self.q_max = np.concatenate([np.full(self.n_base, np.inf), lim.q_upper[-self.n_arm:]])
@@ -358,7 +367,7 @@ def truth_measures(robot, q: np.ndarray, targets: np.ndarray) -> tuple[np.ndarra
     targets (N, 4, 4), and ``σ_min`` of the arm's position Jacobian."""
     registry = registry_of(robot)
     q_sym, J_m = arm_jacobian(robot)
-    pose = registry.get("pose[ee]").symbolic()(q_sym)
+    pose = _symbolic(registry, "pose[ee]")(q_sym)
     target = ca.SX.sym("target", 4, 4)
     error = ca.vertcat(target[:3, 3] - pose[:3, 3], so3_log(target[:3, :3] @ pose[:3, :3].T))
     measure = ca.Function("truth", [q_sym, target], [error, smallest_singular_value(J_m)])
@@ -646,8 +655,9 @@ def equivalence(robot, states: int, seed: int = 0, backend: str = "daqp",
         q, v, refs = random_state(rng, robot)
         x_qp = qp.step(q, v, **refs)
         x_cf = closed.step(q, v, **refs)
-        info = closed.last_info
-        s_qp = qp.last_solution.scale
+        info, solution = closed.last_info, qp.last_solution
+        assert info is not None and solution is not None  # both set by step()
+        s_qp = solution.scale
         scale_ok &= s_qp is not None and s_qp >= info.alpha - 1e-6
         lower, upper = closed.bounds(q, v)
         inside = np.all(x_cf > lower + 1e-9) and np.all(x_cf < upper - 1e-9)

@@ -261,12 +261,12 @@ def arm_from_urdf(
                                                                 for j in locked_joints):
         raise InvalidValueError(f"locked_joints must be a sequence of joint names, got "
                                 f"{locked_joints!r}")
-    if locked_values is not None:
-        locked_values = as_float_array(locked_values, "locked_values")
-        if locked_values.shape != (len(locked_joints),):
+    values = None if locked_values is None else as_float_array(locked_values, "locked_values")
+    if values is not None:
+        if values.shape != (len(locked_joints),):
             raise ShapeError(f"locked_values must have one value per locked joint "
-                             f"({len(locked_joints)}), got shape {locked_values.shape}")
-        check_finite(locked_values, "locked_values")
+                             f"({len(locked_joints)}), got shape {values.shape}")
+        check_finite(values, "locked_values")
     model = load_urdf_model(path)
     if locked_joints:
         missing = [j for j in locked_joints if not model.existJointName(j)]
@@ -275,8 +275,8 @@ def arm_from_urdf(
                 f"cannot lock joints {missing}: not in {path}; joints: {list(model.names)[1:]}"
             )
         reference = pin.neutral(model)
-        if locked_values is not None:
-            for joint_name, value in zip(locked_joints, locked_values, strict=True):
+        if values is not None:
+            for joint_name, value in zip(locked_joints, values, strict=True):
                 jid = model.getJointId(joint_name)
                 reference[model.joints[jid].idx_q] = value
         ids = [model.getJointId(j) for j in locked_joints]

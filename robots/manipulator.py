@@ -61,6 +61,8 @@ class MobileManipulator(PinocchioRobot):
     (:func:`wbc.robots.from_urdf` does the same with a base given by name.)
     """
 
+    base: PlanarBase  # never None here (a fixed-base PinocchioRobot's is)
+
     def __init__(
         self,
         base: PlanarBase,

@@ -64,7 +64,7 @@ def register_quantities(robot) -> QuantityRegistry:
     def frames() -> list[str]:
         return robot.frame_names
 
-    def fill_manipulability(frame: str, out) -> None:
+    def fill_manipulability(frame: str | None, out) -> None:  # a frame name: argument="frame"
         out[0, 0] = robot.manipulability(None, frame)
 
     registry.register(

@@ -337,7 +337,9 @@ class PinocchioRobot:
                 h[0, 0] = c
                 h[1, 0] = s
             else:
-                self.base.pose_rate_matrix(theta, out=h)
+                base = self.base
+                assert base is not None  # kind != "fixed"
+                base.pose_rate_matrix(theta, out=h)
         if v is None:
             pin.computeJointJacobians(model, data, q)
             self._has_v = False
@@ -352,7 +354,9 @@ class PinocchioRobot:
                 elif kind == "unicycle":
                     (vx, omega), vy = v[:2].tolist(), 0.0
                 else:
-                    vx, vy, omega = (self.base.body_map @ v[:nb]).tolist()
+                    base = self.base
+                    assert base is not None  # kind != "fixed"
+                    vx, vy, omega = (base.body_map @ v[:nb]).tolist()
                 # q̇ = S v and q̈ = Ṡ v (base pose rates and their drift at constant v)
                 qdot = self._qdot
                 qdot[:3] = (c * vx - s * vy, s * vx + c * vy, omega)
@@ -569,8 +573,9 @@ class PinocchioRobot:
 
     def _symbolic_configuration_rate(self, q: ca.SX, v: ca.SX) -> ca.SX:
         """``q̇ = S(q) v``: base pose rates ``H(θ) v_b`` [m/s, m/s, rad/s], joint rates as is."""
-        nb = self.nv_base
-        return ca.vertcat(pose_rate_matrix(q[2], self.base.body_map) @ v[:nb], v[nb:])
+        nb, base = self.nv_base, self.base
+        assert base is not None  # called for a mobile base only
+        return ca.vertcat(pose_rate_matrix(q[2], base.body_map) @ v[:nb], v[nb:])
 
     def symbolic_drift(self, frame: str | int = "ee") -> ca.Function:
         """``(q, v) -> drift`` as a CasADi function (cached per frame): :meth:`frame_drift`

@@ -95,6 +95,7 @@ def _forward(model: pin.Model, q: ca.SX, joints: list[int]):
         kind_axis = _joint_kind(joint)
         if kind_axis is None:
             check_joints(model, model.name or "model")  # raises, naming the joint
+            raise AssertionError(f"joint {j} is not supported, yet check_joints passed")
         kind, axis = kind_axis
         R, p = poses[model.parents[j]]
         p = p + R @ ca.DM(M.translation)

@@ -18,7 +18,7 @@ import sys
 import tempfile
 import threading
 from types import ModuleType
-from typing import ClassVar, TextIO
+from typing import TextIO
 
 import numpy as np
 
@@ -247,7 +247,10 @@ class BackendBase:
 
     name: str = "base"
     cascade_caveat: str | None = None
-    PROFILES: ClassVar[dict[str, dict]] = {"default": {}, "tight": {}}
+    PROFILES: dict[str, dict] = {"default": {}, "tight": {}}  # an instance may have its own
+    # n and m for the hooks: they run after setup(), which sets both, so never None there
+    _n: int
+    _m: int
 
     def __init__(self, profile: str = "default", **options):
         self.profile = profile
@@ -262,7 +265,8 @@ class BackendBase:
 
     def setup(self, H, g, A, lA, uA, lb, ub) -> None:
         """Fix the structure (``n = H.shape[0]``, ``m = A.shape[0]``) and load the first data."""
-        self.n, self.m = n, m = check_problem(H, g, A, lA, uA, lb, ub)
+        n, m = check_problem(H, g, A, lA, uA, lb, ub)
+        self.n, self.m = self._n, self._m = n, m
         self._shapes = ((n, n), (n,), (m, n), (m,), (m,), (n,), (n,))
         try:
             self._setup(H, g, A, lA, uA, lb, ub)
@@ -304,7 +308,7 @@ class BackendBase:
         except Exception as err:
             raise backend_error(self.name, "solve", err) from err
         if result.status is Status.SOLVED and not all_finite(result.x):
-            result = failure(self.n, self.m, Status.NUMERICAL, "non-finite solution")
+            result = failure(self._n, self._m, Status.NUMERICAL, "non-finite solution")
         if console is not None and console.lines:
             self.console_lines += console.lines
             CONSOLE_LINES[self.name] = CONSOLE_LINES.get(self.name, 0) + console.lines

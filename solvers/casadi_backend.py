@@ -145,7 +145,7 @@ class CasadiConicBackend(BackendBase):
         self._console = ConsoleCapture(fd=bool(polishing))
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         rows = max(m, 1)  # an inert row when m = 0: see the module docstring
         casadi = self._casadi
         self._structure = {"h": casadi.Sparsity.dense(n, n),
@@ -204,7 +204,7 @@ class CasadiConicBackend(BackendBase):
         return True
 
     def _update(self, H, g, A, lA, uA, lb, ub) -> None:
-        arrays, m = self._inputs, self.m
+        arrays, m = self._inputs, self._m
         arrays["h"][...] = H
         arrays["g"][...] = g
         # A constant objective (H = 0, g = 0: an empty or all-zero undamped level) makes every
@@ -213,7 +213,7 @@ class CasadiConicBackend(BackendBase):
         # its multipliers are then those of the original's zero objective: 0.
         self._constant = not (H.any() or g.any())
         if self._constant:
-            arrays["h"][...] = np.eye(self.n)
+            arrays["h"][...] = np.eye(self._n)
         arrays["a"][:m] = A
         arrays["lba"][:m] = lA
         arrays["uba"][:m] = uA
@@ -223,7 +223,7 @@ class CasadiConicBackend(BackendBase):
         self._empty = empty_sides(lA, uA) or empty_sides(lb, ub)
 
     def _solve(self, warm_start) -> QPResult:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         if self._empty:
             return empty_failure(self.name, n, m)
         inputs, outputs = self._inputs, self._outputs

@@ -64,7 +64,7 @@ class ClarabelBackend(BackendBase):
             setattr(self._settings, key, value)
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         self._triu = UpperTriangle(n)
         self._P = np.empty(self._triu.nnz)
         self._g = np.empty(n)
@@ -107,7 +107,7 @@ class ClarabelBackend(BackendBase):
         self._solver.update(P=self._P, q=self._g, A=self._G, b=self._rows.rhs(stack.l, stack.u))
 
     def _solve(self, warm_start) -> QPResult:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         solution = self._solver.solve()
         words = str(solution.status)
         status = _STATUS.get(words, Status.NUMERICAL)

@@ -77,7 +77,7 @@ class DaqpBackend(BackendBase):
         check_option_names(self.name, self.options, self._daqp.Model().settings)
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         self._H = np.empty((n, n))
         self._f = np.empty(n)
         self._A = np.empty((m, n))
@@ -106,10 +106,10 @@ class DaqpBackend(BackendBase):
         self._cold = False
 
     def _load_sides(self, lA, uA, lb, ub) -> None:
-        n = self.n
+        n = self._n
         self._upper[:n] = ub
         self._lower[:n] = lb
-        if self.m:
+        if self._m:
             self._upper[n:] = uA
             self._lower[n:] = lA
 
@@ -130,7 +130,7 @@ class DaqpBackend(BackendBase):
         # DAQP copies what update() is given (converting the memory order if needed), so H, g
         # and A go in as they are; the references are kept for a retry (see _solve_loosely).
         self._data = (H, g, A)
-        A = A if self.m else None
+        A = A if self._m else None
         if self._read_equalities() or self._cold:  # passing the flags resets the active set
             self._flag = self._model.update(H, g, A, self._upper, self._lower, self._sense)
             self._cold = False
@@ -138,7 +138,7 @@ class DaqpBackend(BackendBase):
             self._flag = self._model.update(H, g, A, self._upper, self._lower)
 
     def _solve(self, warm_start) -> QPResult:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         if self._model is None or self._flag < 0:
             self._cold = True
             status, words = _exit(self._flag)

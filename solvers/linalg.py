@@ -102,7 +102,7 @@ def _bounds(lower, upper, n: int) -> tuple[np.ndarray, np.ndarray]:
 # --------------------------------------------------------------------------------------------
 
 
-def _svd(J: np.ndarray):
+def _svd(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     m, n = J.shape
     if m == 0 or n == 0:
         k = min(m, n)
@@ -220,10 +220,10 @@ def weighted_damped_pinv(
     :func:`damped_pinv`; for ``ρ = 0`` this is ``M^{1/2} (J M^{1/2})⁺``.
 
     ``x = J^#_M v`` is the minimiser of ``‖J x − v‖² + ρ² xᵀ M⁺ x`` over ``x ∈ range(M)``
-    (design math note 1); for invertible ``M`` that is ``‖J x − v‖² + ρ² ‖x‖²_W``. Directions of
-    zero mobility never move: with ``M = diag(m_i)`` and ``m_j = 0`` joint ``j`` is pinned to 0
-    and the other joints solve the same problem on their own (with ``ρ²/m_i`` as damping of the
-    weighted coordinates). With ``ρ = 0`` and a non-full-rank ``J M^{1/2}`` it is the
+    (docs/DESIGN.md, math note 1); for invertible ``M`` that is ``‖J x − v‖² + ρ² ‖x‖²_W``.
+    Directions of zero mobility never move: with ``M = diag(m_i)`` and ``m_j = 0`` joint ``j``
+    is pinned to 0 and the other joints solve the same problem on their own (with ``ρ²/m_i`` as
+    damping of the weighted coordinates). With ``ρ = 0`` and a non-full-rank ``J M^{1/2}`` it is the
     minimum-``‖x‖_{M⁺}`` least-squares solution within ``range(M)``.
 
     Args:

@@ -66,7 +66,7 @@ class OsqpBackend(BackendBase):
             self._console = ConsoleCapture()
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         self._triu = UpperTriangle(n)
         self._P = np.empty(self._triu.nnz)
         self._stack = StackedConstraints(n, m)
@@ -97,7 +97,7 @@ class OsqpBackend(BackendBase):
             self._solver.update(q=g, l=self._stack.l, u=self._stack.u, Px=self._P, Ax=self._A)
 
     def _solve(self, warm_start) -> QPResult:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         if self._empty:
             return empty_failure(self.name, n, m)
         if warm_start is not None:

@@ -94,7 +94,7 @@ class ProxqpBackend(BackendBase):
         }
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         self._H = np.empty((n, n))
         self._g = np.empty(n)
         self._stack = StackedConstraints(n, m)  # the data, for rebuilds and the guard
@@ -110,7 +110,7 @@ class ProxqpBackend(BackendBase):
 
     def _build(self) -> None:
         """A new model on the loaded data (the next solve starts cold)."""
-        n, m, stack = self.n, self.m, self._stack
+        n, m, stack = self._n, self._m, self._stack
         self._qp = self._proxqp.dense.QP(n, 0, m, True)
         settings = self._qp.settings
         settings.verbose = False
@@ -134,7 +134,7 @@ class ProxqpBackend(BackendBase):
         return self._status.get(self._qp.results.info.status, Status.NUMERICAL)
 
     def _solve(self, warm_start) -> QPResult:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         if self._empty:
             return empty_failure(self.name, n, m)
         guess = self._proxqp.InitialGuess

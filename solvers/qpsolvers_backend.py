@@ -86,14 +86,14 @@ class QpsolversBackend(BackendBase):
         self._console = ConsoleCapture()  # e.g. OSQP's "Polishing not needed ..."
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
-        self._x = np.zeros(self.n)
+        self._x = np.zeros(self._n)
         self._update(H, g, A, lA, uA, lb, ub)
 
     def _update(self, H, g, A, lA, uA, lb, ub) -> None:
         self._data = [np.array(a, dtype=float) for a in (H, g, A, lA, uA, lb, ub)]
 
     def _solve(self, warm_start) -> QPResult:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         H, g, A, lA, uA, lb, ub = self._data
         rows = OneSidedRows(lA, uA)
         G_all, h_all = rows.matrix(A), rows.rhs(lA, uA)

@@ -139,7 +139,7 @@ class _Worker:
     quadprog at the same time, not one per backend.
     """
 
-    def __init__(self, solve_qp):
+    def __init__(self, solve_qp) -> None:
         self._solve_qp = solve_qp
         # plain locks used as binary semaphores (held = no signal): threading.Semaphore is a
         # Condition in Python and made each hand-off cost ~100 µs on this machine
@@ -201,6 +201,9 @@ class _Constraints:
         table: the table whose current sides set the pattern.
     """
 
+    C: np.ndarray | None  # both None without constraints
+    b: np.ndarray | None
+
     def __init__(self, table: RowTable):
         self.key = table.pattern()
         rows = OneSidedRows(table.l, table.u)
@@ -258,10 +261,10 @@ class QuadprogBackend(BackendBase):
         self._feas_tol = self.options.get("feas_tol", 1e-10)
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
-        self._H = np.empty((self.n, self.n))
-        self._g = np.empty(self.n)
-        self._table = RowTable(self.n, self.m)
-        self._x = np.zeros(self.n)
+        self._H = np.empty((self._n, self._n))
+        self._g = np.empty(self._n)
+        self._table = RowTable(self._n, self._m)
+        self._x = np.zeros(self._n)
         self._update(H, g, A, lA, uA, lb, ub)
         self._constraints = _Constraints(self._table)
 
@@ -271,7 +274,7 @@ class QuadprogBackend(BackendBase):
         self._table.load(A, lA, uA, lb, ub)
 
     def _solve(self, warm_start) -> QPResult:
-        n, m = self.n, self.m
+        n, m = self._n, self._m
         table = self._table
         if table.pattern() != self._constraints.key:
             self._constraints = _Constraints(table)
@@ -311,9 +314,11 @@ class QuadprogBackend(BackendBase):
         """``(x, lam, iterations)`` under the gathered ``constraints``; raises quadprog's
         ``ValueError`` or :class:`_NotConverged`."""
         C, b, n_eq = constraints.C, constraints.b, constraints.n_eq
-        keep = None if C is None else parallel_rows(C, b, n_eq)
-        if keep is not None:
-            C, b, n_eq = C[:, keep], b[keep], int(keep[:n_eq].sum())
+        keep: np.ndarray | None = None
+        if C is not None and b is not None:  # (both or neither)
+            keep = parallel_rows(C, b, n_eq)
+            if keep is not None:
+                C, b, n_eq = C[:, keep], b[keep], int(keep[:n_eq].sum())
         solve_qp, time_limit = self._quadprog.solve_qp, self._time_limit
 
         def solve(H, g):

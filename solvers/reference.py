@@ -46,6 +46,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -183,8 +184,8 @@ def hierarchy(
         N_k = I − [J_1; …; J_k]⁺ [J_1; …; J_k]            (exact stacked projector)
 
     where ``^#`` is :func:`damped_pinv` with ``ρ_k`` (the plain truncated pseudo-inverse when
-    ``ρ_k = 0``). The projectors are never damped (design math note 2), so the increment of level
-    ``k`` never disturbs levels ``< k``.
+    ``ρ_k = 0``). The projectors are never damped (docs/DESIGN.md, math note 2), so the
+    increment of level ``k`` never disturbs levels ``< k``.
 
     With every ``ρ_k = 0`` the result is the minimum-norm solution of the lexicographic
     least-squares problem (each level minimises ``‖J_k x − v_k‖`` among the optima of the
@@ -210,14 +211,14 @@ def hierarchy(
     if not levels:
         raise ShapeError("hierarchy needs at least one level (J, v)")
     Js, vs = [], []
-    n = None
+    n = 0  # the columns of level 0's J, which every level must have
     for k, lvl in enumerate(levels):
         try:
             Jk, vk = lvl
         except (TypeError, ValueError):
             raise ShapeError(f"level {k} must be a pair (J, v)") from None
         Jk = _matrix(Jk, f"J of level {k}")
-        if n is None:
+        if k == 0:
             n = Jk.shape[1]
         if Jk.shape[1] != n:
             raise ShapeError(f"J of level {k} has {Jk.shape[1]} columns, level 0 has {n}")
@@ -226,6 +227,7 @@ def hierarchy(
     if np.ndim(rho) == 0:
         rhos = [_nonneg_scalar(rho, "rho")] * len(levels)
     else:
+        rho = cast(Sequence[float], rho)  # not a scalar: one per level
         if len(rho) != len(levels):
             raise ShapeError(f"rho has {len(rho)} entries for {len(levels)} levels")
         rhos = [_nonneg_scalar(r, f"rho[{k}]") for k, r in enumerate(rho)]

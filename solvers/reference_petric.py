@@ -5,8 +5,8 @@ The smoothed base command ``û_k`` (eqs. 14–15) is limited against the previou
 
     ũ_k = ψ_{u_max}(u_{k−1} + ψ_{Δu_max}(û_k − u_{k−1})),      ψ_r(x) = clip(x, −r, r).
 
-DESIGN math note 5: for 1-D intervals with a common point, clipping into one interval and then
-into the other is the projection onto their intersection, so eqs. 16–17 are the QP
+docs/DESIGN.md, math note 5: for 1-D intervals with a common point, clipping into one interval
+and then into the other is the projection onto their intersection, so eqs. 16–17 are the QP
 
     min ½||u − û_k||²   s.t.   lower ≤ u ≤ upper,
     lower = clip(u_{k−1} − Δu_max, −u_max, u_max),   upper = clip(u_{k−1} + Δu_max, −u_max, u_max).

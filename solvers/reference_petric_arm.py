@@ -12,10 +12,10 @@ inverse. That matrix is not a projector (``N² ≠ N``) and its range is not the
 task. Per singular value ``σ`` of ``J`` the leak gain is ``λ σ / (σ² + λ) ≤ √λ / 2``
 (0.112 for λ = 0.05, at ``σ = √λ``). Both readings are offered:
 
-* ``projector="exact"`` — ``N = I − J⁺ J`` (DESIGN math note 2: never damp the projector). Its
-  QP form is the two-level cascade "level 0: ``½||J x − u||² + ½ λ ||x||²``; level 1:
-  ``½||x − q̇_n||²`` keeping ``J x = J x₀*``" (math note 3: ``J# u`` lies in the row space of
-  ``J``, so the cascade adds exactly ``(I − J⁺J) q̇_n``).
+* ``projector="exact"`` — ``N = I − J⁺ J`` (docs/DESIGN.md, math note 2: never damp the
+  projector). Its QP form is the two-level cascade "level 0: ``½||J x − u||² + ½ λ ||x||²``;
+  level 1: ``½||x − q̇_n||²`` keeping ``J x = J x₀*``" (docs/DESIGN.md, math note 3: ``J# u``
+  lies in the row space of ``J``, so the cascade adds exactly ``(I − J⁺J) q̇_n``).
 * ``projector="damped"`` — eq. 26 as printed. Then eq. 22 is exactly the *single* regularised
   least-squares problem ``min ||J x − u||² + λ ||x − q̇_n||²``: since
   ``J# = (JᵀJ + λI)⁻¹ Jᵀ`` and ``I − J# J = λ (JᵀJ + λI)⁻¹``, its minimiser

@@ -2,10 +2,10 @@
 
 * :func:`task_sharing_factor` — eq. 11: ψ from the end-tip position error.
 * :func:`sharing_mobility` — the mobility ``M = diag((1 − ψ) I_base, ψ I_arm)`` of eq. 10 read
-  with the erratum (DESIGN): as printed, eq. 10 *weights* the base by ``1 − ψ``, so that
-  ``W⁻¹`` moves only the base at ψ = 1, the opposite of the text and Fig. 2. We read
-  ``diag((1 − ψ) I, ψ I)`` as the mobility ``W⁻¹``: ψ = 1 moves the arm only, ψ = 0 the base
-  only, and both extremes are singular (a zero mobility pins those joints).
+  with the erratum (docs/DESIGN.md, section "Sorour et al."): as printed, eq. 10 *weights* the
+  base by ``1 − ψ``, so that ``W⁻¹`` moves only the base at ψ = 1, the opposite of the text and
+  Fig. 2. We read ``diag((1 − ψ) I, ψ I)`` as the mobility ``W⁻¹``: ψ = 1 moves the arm only,
+  ψ = 0 the base only, and both extremes are singular (a zero mobility pins those joints).
 * :func:`task_sharing_velocity` — eq. 9: ``M Jᵀ(J M Jᵀ + ρ²I)⁻¹ v + λ(I − J⁺J) z``.
 * :func:`arm_compensation` — eq. 14's correction ``J_arm⁺ J_base (q̇_b,ref − q̇_b,feasible)``.
 
@@ -85,7 +85,8 @@ def task_sharing_velocity(J, v, psi: float, rho: float, n_base: int, lam: float 
         z: ``(n,)`` null-space velocity (eq. 13's ``z_dex``); ``None``: no null-space term.
 
     Returns:
-        ``q̇`` of shape ``(n,)``. The projector ``I − J⁺J`` is undamped (DESIGN math note 2).
+        ``q̇`` of shape ``(n,)``. The projector ``I − J⁺J`` is undamped (docs/DESIGN.md,
+        math note 2).
     """
     J = _matrix(J)
     m, n = J.shape

@@ -24,7 +24,7 @@ Reading of the paper (where its text leaves a choice):
   all joints, saturations reset (the paper: "the joints' accelerations need to be adjusted
   again"); its scale is α. When ``σ_min(J_m) < σ_thr`` the base is enabled from the start.
 * **Scaling** applies to the commanded task acceleration only, not to the drift ``J̇q̇``
-  (DESIGN math note 4).
+  (docs/DESIGN.md, math note 4).
 * **The tertiary objective** is ``β P_A q̈_sa`` with ``S`` the joints that are still free after
   the SNS loop (saturated joints and a disabled base have ``S_ii = 0``); ``P_N = I − J⁺J`` uses
   the whole robot's task Jacobian. As printed, ``[I − ((I − S)P_N)⁺] P_N`` is the orthogonal

@@ -227,7 +227,7 @@ def sns_acceleration(
         J q̈ + J̇q̇ = s ẍ_d,     lower <= q̈ <= upper,
 
     i.e. only the commanded task acceleration ``ẍ_d`` is scaled, never the drift ``J̇q̇``
-    (design math note 4). The iteration is that of :func:`sns_velocity` with
+    (docs/DESIGN.md, math note 4). The iteration is that of :func:`sns_velocity` with
     ``q̈(s) = s a + b``, ``a = (J W)⁺ ẍ_d``, ``b = q̈_N + (J W)⁺ (−J̇q̇ − J q̈_N)``.
 
     Acceleration bounds derived from position and velocity limits need not contain 0, so

@@ -164,10 +164,10 @@ def joint_acceleration_bounds(q, qd, q_min, q_max, v_min, v_max, a_min, a_max, d
     arrays = [as_float_array(value, f"{label} of {what}")
               for label, value in zip(names, values, strict=True)]
     try:
-        arrays = np.broadcast_arrays(*arrays)
+        broadcast = np.broadcast_arrays(*arrays)
     except ValueError as error:
         raise ShapeError(f"{what}: the arrays do not broadcast ({error})") from None
-    q, qd, q_min, q_max, v_min, v_max, a_min, a_max = arrays
+    q, qd, q_min, q_max, v_min, v_max, a_min, a_max = broadcast
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
         raise NonFiniteError(f"{what}: q and qd must be finite")
     _check_limits(q_min, q_max, v_min, v_max, a_min, a_max, what)

@@ -122,7 +122,8 @@ class Bounds(_Numeric):
         if lo.ndim and up.ndim and lo.shape != up.shape:
             raise ShapeError(f"bounds {name!r}: lower has {lo.shape[0]} entries but upper has "
                              f"{up.shape[0]}")
-        check_bounds_order(*np.broadcast_arrays(lo, up), f"bounds {name!r}")
+        lo_full, up_full = np.broadcast_arrays(lo, up)
+        check_bounds_order(lo_full, up_full, f"bounds {name!r}")
         self._lower, self._upper = lo, up
 
     def terms(self, stack):

@@ -92,7 +92,7 @@ class ManipulabilityTask(Task):
 
     As the lowest level of a cascade, this cost over all joints makes the solution unique and
     equals Xing's tertiary term ``P_A q̈_sa`` when no bound is active (the levels above leave
-    ``x₁* + range(P_A)`` free, and ``x₁*`` is orthogonal to it: DESIGN math note 3).
+    ``x₁* + range(P_A)`` free, and ``x₁*`` is orthogonal to it: docs/DESIGN.md, math note 3).
 
     Args:
         robot: the robot (``nq``, ``nv``, a symbolic ``"J[<frame>]"``).

@@ -7,9 +7,10 @@ Pink's ``PostureTask`` (stephane-caron/pink) as an affine term over joint veloci
 Pink minimises ``1/2 ||W (Δq + gain · (q ⊖ q*))||²`` over ``Δq = v · dt``; dividing by ``dt²``
 gives the cost above with ``w = cost²``.
 
-Base coordinates. DESIGN's robots order coordinates base first, then arm joints, and a mobile
-base's velocity coordinates need not match its configuration (a differential drive has
-``q_base = (x, y, θ)`` but ``v_base = (v, ω)``). The posture therefore acts on the *arm* only:
+Base coordinates. The robots order coordinates base first, then arm joints (docs/DESIGN.md,
+section "Robots and tasks"), and a mobile base's velocity coordinates need not match its
+configuration (a differential drive has ``q_base = (x, y, θ)`` but ``v_base = (v, ω)``). The
+posture therefore acts on the *arm* only:
 the last ``n_arm`` entries of ``v`` and of ``q``, where the arm joints are 1-DoF (revolute or
 prismatic, so ``q_i ⊖ q*_i = q_i − q*_i``). ``n_arm`` is, in order: the ``joints`` argument,
 ``robot.n_arm``, ``robot.nv − robot.base.nv``, or ``robot.nv`` when ``robot.nq == robot.nv``

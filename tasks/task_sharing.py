@@ -7,7 +7,7 @@
   solved, and the null-space level below may still move the pinned joints, as eq. 9's
   ``(I − J⁺J) z`` does.
 * :class:`DexterousPosture` — eq. 9's null-space term with eq. 13's ``z_dex`` in the exact QP
-  form of DESIGN math note 3 (weighted case): the level below the task minimises
+  form of docs/DESIGN.md, math note 3 (weighted case): the level below the task minimises
   ``||q̇ − q̇₁* − λ_dex z||²`` while the task's rows keep their optimal values
   (``J q̇ = J q̇₁*``), whose minimiser is ``q̇₁* + λ_dex (I − J⁺J) z`` exactly. ``q̇₁*`` is
   :meth:`wbc.Stack.x_above`. (The plain form ``||q̇ − λ z||²`` would also pull ``q̇₁*``'s part

@@ -268,7 +268,7 @@ class VelocityField:
     # ------------------------------------------------------------------ eqs. 16-17 as a QP level
     def rate_limit_level(self, stack, priority: int = 0, block: str | None = None,
                          name: str = "base_rate_limit"):
-        """Carry eqs. 16–17 in ``stack`` (DESIGN math note 5): at ``priority`` the cost
+        """Carry eqs. 16–17 in ``stack`` (docs/DESIGN.md, math note 5): at ``priority`` the cost
         ``½||u − û||²`` on the two entries ``u = (v, ω)`` of variable ``block``, and, hard at
         every level, the bounds ``clip(u_prev ∓ Δu_max, ±u_max)``
         (:func:`wbc.solvers.reference_petric.rate_limit_interval`). Its minimiser is the

@@ -1,4 +1,4 @@
-"""The QP cascade recovers the closed forms of the literature (DESIGN math notes 1–6).
+"""The QP cascade recovers the closed forms of the literature (docs/DESIGN.md, math notes 1–6).
 
 Every test runs on every installed backend with its ``"tight"`` profile, over random instances
 drawn by hypothesis (task rows m 1–6, variables n from m to m+6), including rank-deficient and
@@ -50,7 +50,7 @@ def scaling_backends():
 
 @st.composite
 def instances(draw, min_n: int = 1):
-    """``(m, n, rank, rng)``: sizes of DESIGN's random instances, rank-deficient half the time."""
+    """``(m, n, rank, rng)``: the random instances of docs/DESIGN.md, math note 6."""
     m = draw(st.integers(1, 6))
     n = draw(st.integers(max(m, min_n), m + 6))
     rank = draw(st.sampled_from([min(m, n), max(1, min(m, n) - 1), 1]))
@@ -140,7 +140,7 @@ def test_strict_hierarchy_equals_recursive_nullspace_projection(backend, levels,
 @given(instances(), st.sampled_from([0.0, 0.1, 0.5]), st.floats(0.5, 3.5))
 def test_additive_nullspace_term_is_plain_cascade_when_unweighted(backend, inst, rho, lam):
     """x = J^# v + λ(I − J⁺J) z equals 'level 1: J^# v; level 2: min ||x − λz||²' because the
-    (damped) unweighted J^# v lies in the row space of J (math note 3)."""
+    (damped) unweighted J^# v lies in the row space of J (docs/DESIGN.md, math note 3)."""
     m, n, rank, rng = inst
     J, v, z = random_matrix(rng, m, n, rank), rng.standard_normal(m), rng.standard_normal(n)
     stack = wbc.Stack(n, damping={0: rho})
@@ -156,7 +156,7 @@ def test_additive_nullspace_term_is_plain_cascade_when_unweighted(backend, inst,
 @given(instances(min_n=4), st.sampled_from([0.05, 0.5]), st.floats(0.5, 3.5))
 def test_additive_nullspace_term_needs_exact_form_when_weighted(backend, inst, rho, lam):
     """With a weighted J^# the plain cascade differs; level 2 minimising ||x − x₁* − λz||²
-    under the same equality is exact (math note 3)."""
+    under the same equality is exact (docs/DESIGN.md, math note 3)."""
     m, n, rank, rng = inst
     J, v, z = random_matrix(rng, m, n, rank), rng.standard_normal(m), rng.standard_normal(n)
     mobility = np.r_[np.full(3, 0.7), np.full(n - 3, 0.3)]  # ψ = 0.3
@@ -192,7 +192,8 @@ def _sns_problem(rng, m, n, rank):
 
 
 def _assert_sns_agreement(sns_x, sns_s, sol, J, lower, upper, tol=TOL):
-    """Math note 4: the LP scale is never below SNS's; x is compared only when scales agree.
+    """docs/DESIGN.md, math note 4: the LP scale is never below SNS's; x is compared only when
+    scales agree.
 
     With equal scales the QP's x is the minimum-norm point of ``{J x = s·target, bounds}`` and
     SNS's x is a point of that set, so ``||x_QP|| <= ||x_SNS||``; they are equal when SNS
@@ -251,7 +252,7 @@ def test_sns_acceleration_vs_scaling_lp(backend, inst):
 
 
 def test_sns_suboptimality_rate():
-    """How often basic SNS misses the LP-optimal scale (DESIGN: roughly 2–4 % of problems).
+    """How often basic SNS misses the LP-optimal scale (docs/DESIGN.md, math note 4: roughly 2–4 %).
 
     Run on daqp over 300 seeded 6×7 problems; the rate is printed (``pytest -s``) and only
     guarded loosely, the one-sided inequality is asserted on every problem.
@@ -277,7 +278,8 @@ def test_sns_suboptimality_rate():
 @pytest.mark.parametrize("backend", BACKENDS)
 @given(st.integers(1, 6), st.integers(0, 2**32 - 1))
 def test_rate_limit_then_saturation_is_bounded_qp(backend, k, seed):
-    """clip(clip(û, u_prev ± Δ), ±u_max) = argmin (u − û)² over both intervals (math note 5)."""
+    """clip(clip(û, u_prev ± Δ), ±u_max) = argmin (u − û)² over both intervals (docs/DESIGN.md,
+    math note 5)."""
     rng = np.random.default_rng(seed)
     u_max = rng.uniform(0.5, 2.0, k)
     delta = rng.uniform(0.05, 1.0, k)

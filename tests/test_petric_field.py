@@ -174,7 +174,8 @@ def test_step_is_eqs_14_to_17_on_the_raw_command():
 @settings(max_examples=200)
 @given(st.integers(0, 2**32 - 1))
 def test_two_stage_clip_is_the_projection_onto_the_clipped_rate_interval(seed):
-    """Math note 5, including previous commands outside ``limit + rate`` (both give ±limit)."""
+    """docs/DESIGN.md, math note 5, including previous commands outside ``limit + rate`` (both
+    give ±limit)."""
     rng = np.random.default_rng(seed)
     n = int(rng.integers(1, 4))
     limit, rate = rng.uniform(0.1, 2.0, n), rng.uniform(0.01, 1.0, n)

@@ -419,7 +419,7 @@ def test_sns_velocity_random_against_lp(kind):
             assert s == 1.0
             np.testing.assert_allclose(q, p, atol=1e-12)
         s_lp, q_lp = lp_max_scale(J, xd, lower, upper)
-        assert s <= s_lp + 1e-9  # SNS can only be worse than the LP (math note 4)
+        assert s <= s_lp + 1e-9  # SNS can only be worse than the LP (docs/DESIGN.md, math note 4)
         if s < 1.0:
             scaled += 1
             if s < s_lp - 1e-7:

@@ -158,7 +158,8 @@ def test_kuka_lwr4_agrees_with_its_modified_dh_table():
 
 
 def test_tiago_panda_reduced_point_and_segment_lengths():
-    """DESIGN: l0 0.333, l1 = |(0.0825, 0.316)| ≈ 0.327, l2 = |(0.088, 0.384)| ≈ 0.394."""
+    """l0 0.333, l1 = |(0.0825, 0.316)| ≈ 0.327, l2 = |(0.088, 0.384)| ≈ 0.394 (the paper
+    prints l1 ≈ 0.328: docs/DESIGN.md, section "Petrič & Žlajpah")."""
     robot = robots.load("tiago_panda")
     reduced = robots.ReducedPanda(robot)
     l0, l1, l2 = reduced.lengths

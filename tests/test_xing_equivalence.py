@@ -3,8 +3,8 @@
 
 Where the arm alone does the task with no bound active, the two are the same (to 1e-7); where
 the greedy SNS loop saturates joints or enables the base, only the task scale is compared,
-one-sidedly (DESIGN math note 4): the cascade's LP finds the largest feasible scale, which is
-never below SNS's. ``test_robot_states`` counts how often the two differ on the robot.
+one-sidedly (docs/DESIGN.md, math note 4): the cascade's LP finds the largest feasible scale,
+which is never below SNS's. ``test_robot_states`` counts how often the two differ on the robot.
 """
 
 from __future__ import annotations

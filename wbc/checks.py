@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from typing import Literal, overload
 
 import casadi as ca
 import numpy as np
@@ -213,6 +214,10 @@ def check_symbols(expr: ca.SX, parameters, what: str) -> None:
                                 "of this stack; declare them with stack.parameter(...)")
 
 
+@overload
+def checked_name(value, what: str, optional: Literal[False]) -> str: ...
+@overload
+def checked_name(value, what: str, optional: bool = True) -> str | None: ...
 def checked_name(value, what: str, optional: bool = True) -> str | None:
     """A name: a ``str`` (or ``None`` if ``optional``); else :class:`InvalidValueError`."""
     if value is None and optional:

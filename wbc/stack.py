@@ -82,7 +82,7 @@ class Stack:
         metric: ``W`` (symmetric PSD ``(n, n)``, or ``(n,)`` diagonal); identity by default.
         mobility: alternative to ``metric``: a symmetric PSD mobility ``M = W⁻¹``. Directions
             in its null space are pinned to zero (hard), and ``W = M⁺`` elsewhere — so that the
-            one-level stack reproduces ``M Jᵀ(J M Jᵀ + ρ² I)⁻¹ v`` (DESIGN math note 1). A
+            one-level stack reproduces ``M Jᵀ(J M Jᵀ + ρ² I)⁻¹ v`` (docs/DESIGN.md, math note 1). A
             mobility that changes every tick, or that holds at some levels only: see
             :meth:`set_mobility`.
         min_norm: add a final level minimising ``xᵀ W x`` under everything above, which makes
@@ -306,7 +306,7 @@ class Stack:
 
         When a level is evaluated, this holds the cascade's ``x`` so far (the last solved
         level's optimum; zeros at the first level). It makes the exact QP form of an additive
-        null-space term possible (DESIGN math note 3): a level minimising
+        null-space term possible (docs/DESIGN.md, math note 3): a level minimising
         ``||x − x_above − λz||²`` under the frozen rows of the level above.
 
         Returns:

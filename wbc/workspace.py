@@ -63,6 +63,11 @@ WIDEN_TOL = 1e-4
 #: How close (relative) to a side the level above's ``x`` counts as on it: the side is moved
 #: onto ``x`` (a sliver of the feasible set this thin is what solvers call infeasible).
 SNAP_TOL = 1e-9
+#: A row of the reduced QP whose coefficients are at most this (relative to the row's in ``x``)
+#: is one the levels above determine completely: inert, or a conflict if ``x0`` violates it.
+#: (1e-9 made quadprog's "inconsistent" slivers of the audit disappear, but moved the referees'
+#: answers apart by 0.3 on two saturating ticks of ``wbc exactness``: kept at 1e-12.)
+DEAD_TOL = 1e-12
 #: After a failed solve, how close (relative) to a side ``x`` above counts as on it when the
 #: level's implicit equalities are looked for (see :func:`_implicit_equalities`).
 RETRY_ACTIVE_TOL = 1e-5
@@ -114,16 +119,24 @@ def make_backend(spec: BackendSpec, profile: str, **options) -> Backend:
     raise WbcError(f"backend must be a name or a factory, got {type(spec).__name__}")
 
 
-def _snapped(side: np.ndarray, original: np.ndarray, sign: float) -> np.ndarray:
-    """A reduced QP's lower (``sign`` −1) or upper (+1) sides ``side = original − a·x0``, moved
-    to 0 where ``x0`` violates them by at most :data:`WIDEN_TOL` or meets them within
-    :data:`SNAP_TOL` (both relative): ``y = 0`` is then feasible whenever the level above met
-    them to its solver's tolerance, a side it ends on is exactly active (so that degenerate
-    vertices are recognised, see :func:`_implicit_equalities`), and a real conflict (a
-    constraint of this level only that the level above's optimum violates) stays one."""
-    scale = 1.0 + np.abs(original)  # inf for an infinite side, which stays as it is
-    near = (sign * side >= -WIDEN_TOL * scale) & (sign * side <= SNAP_TOL * scale)
-    return np.where(near & np.isfinite(side), 0.0, side)
+def _snap(side: np.ndarray, original: np.ndarray, kept: np.ndarray, sign: float) -> None:
+    """Move to 0, in place, the reduced QP's lower (``sign`` −1) or upper (+1) sides ``side =
+    original − a·x0`` of the rows in ``kept`` that ``x0`` violates by at most
+    :data:`WIDEN_TOL` or meets within :data:`SNAP_TOL` (both relative): ``y = 0`` is then
+    feasible whenever the level above met them to its solver's tolerance, a side it ends on is
+    exactly active (so that degenerate vertices are recognised, see
+    :func:`_implicit_equalities`), and a real conflict (a constraint of this level only that
+    the level above's optimum violates) stays one. Infinite sides stay as they are."""
+    scale = np.abs(original)
+    scale += 1.0  # inf for an infinite side: neither comparison below then holds
+    if sign < 0:
+        near = side <= WIDEN_TOL * scale
+        near &= side > -SNAP_TOL * scale
+    else:
+        near = side >= -WIDEN_TOL * scale
+        near &= side < SNAP_TOL * scale
+    near &= kept
+    side[near] = 0.0
 
 
 def _implicit_equalities(state: _BlockState) -> np.ndarray:
@@ -140,11 +153,11 @@ def _implicit_equalities(state: _BlockState) -> np.ndarray:
 
     m, n = state.m_rows, state.N.shape[0]
     A, lA, uA = state.Ar[:, :n], state.lAr, state.uAr
-    considered = np.concatenate((state.kept_rows, np.ones(n, dtype=bool)))
-    tol = RETRY_ACTIVE_TOL * (1.0 + np.abs(np.concatenate((state.lA[:m], state.lb_x))))
-    lower = (lA >= -tol) & np.isfinite(lA) & considered
-    tol = RETRY_ACTIVE_TOL * (1.0 + np.abs(np.concatenate((state.uA[:m], state.ub_x))))
-    upper = (uA <= tol) & np.isfinite(uA) & considered
+    considered = state.kept_rows
+    lower = (lA >= -RETRY_ACTIVE_TOL * (1.0 + np.abs(state.lower0))) & np.isfinite(lA)
+    lower &= considered
+    upper = (uA <= RETRY_ACTIVE_TOL * (1.0 + np.abs(state.upper0))) & np.isfinite(uA)
+    upper &= considered
     active = np.flatnonzero(lower | upper)
     if active.size == 0:
         return np.zeros((0, n))
@@ -216,11 +229,13 @@ class _BlockState:
             self.uAr = np.full(m + n, np.inf)
             self.lbr = np.full(nz, -np.inf)
             self.ubr = np.full(nz, np.inf)
-            # rows y = 0 must satisfy: hard rows and frozen soft rows (not own soft rows,
-            # whose slack absorbs, nor a scaling LP's task equalities)
-            self.kept_rows = np.zeros(m, dtype=bool)
-            self.kept_rows[:block.m_hard] = True
-            self.kept_rows[top:m] = True
+            # rows y = 0 must satisfy: hard rows, frozen soft rows and the bounds (not own soft
+            # rows, whose slack absorbs, nor a scaling LP's task equalities)
+            self.kept_rows = np.ones(m + n, dtype=bool)
+            self.kept_rows[block.m_hard:top] = False
+            self.lower0, self.upper0 = np.zeros(m + n), np.zeros(m + n)  # sides before the shift
+            self.shift = np.zeros(m + n)
+            self.row_scale = np.ones(m + n)  # largest |entry| of each row in x
             self.qp = (self.Hr, self.gr, self.Ar, self.lAr, self.uAr, self.lbr, self.ubr)
         self.has_frozen_rows = bool(block.n_frozen_cost or block.n_frozen_soft)
         self.frozen_rank = 0
@@ -500,12 +515,11 @@ class Workspace:
         Hr, gr, Ar, lAr, uAr = state.Hr, state.gr, state.Ar, state.lAr, state.uAr
         m = state.m_rows
         # w = T u with T = diag(N, I): H ← Tᵀ H T, g ← Tᵀ (H z0 + g), A ← A T, sides − A z0
-        Hxx_N = H[:n, :n] @ N
-        Hr[:n, :n] = N.T @ Hxx_N
-        d = n - rank
-        Hr[range(d, n), range(d, n)] = 1.0  # the padding's variables: unit Hessian, stay 0
+        Hr[:n, :n] = N.T @ (H[:n, :n] @ N)
+        nz = block.n_z
+        Hr.flat[(n - rank) * (nz + 1):n * (nz + 1):nz + 1] = 1.0  # padding: unit Hessian, stays 0
         gr[:n] = N.T @ (H[:n, :n] @ x0 + g[:n])
-        if block.n_z > n:
+        if nz > n:
             Hr[:n, n:] = N.T @ H[:n, n:]
             Hr[n:, :n] = Hr[:n, n:].T
             Hr[n:, n:] = H[n:, n:]
@@ -513,24 +527,30 @@ class Workspace:
             Ar[:m, n:] = A[:m, n:]
             state.lbr[n:] = state.lb[n:]
             state.ubr[n:] = state.ub[n:]
+        # the block's rows, then the bounds of x as rows in y; sides shifted by x0
         Ar[:m, :n] = A[:m, :n] @ N
-        shift = A[:m, :n] @ x0
-        lAr[:m] = lA[:m] - shift
-        uAr[:m] = uA[:m] - shift
+        Ar[m:, :n] = N
+        lower, upper, shift = state.lower0, state.upper0, state.shift
+        lower[:m], lower[m:] = lA[:m], lb
+        upper[:m], upper[m:] = uA[:m], ub
+        shift[:m] = A[:m, :n] @ x0
+        shift[m:] = x0
+        np.subtract(lower, shift, out=lAr)
+        np.subtract(upper, shift, out=uAr)
         kept = state.kept_rows
-        lAr[:m][kept] = _snapped(lAr[:m][kept], lA[:m][kept], -1.0)
-        uAr[:m][kept] = _snapped(uAr[:m][kept], uA[:m][kept], 1.0)
-        Ar[m:, :n] = N  # the bounds of x as rows in y
-        lAr[m:] = _snapped(lb - x0, lb, -1.0)
-        uAr[m:] = _snapped(ub - x0, ub, 1.0)
-        # Rows the levels above determine completely (no y in them): inert when x0 meets them,
+        _snap(lAr, lower, kept, -1.0)
+        _snap(uAr, upper, kept, 1.0)
+        # Rows the levels above determine (no y in them, to DEAD_TOL): inert when x0 meets them,
         # a conflict with the levels above when it does not (backends skip such zero rows).
-        dead = np.abs(Ar).max(axis=1) <= _ABS_RANK_TOL * (1.0 + np.concatenate(
-            (np.abs(A[:m]).max(axis=1, initial=0.0), np.ones(n))))
-        dead[:m] &= kept
-        state.conflicting = bool(np.any(((lAr > 0.0) | (uAr < 0.0)) & dead))
-        lAr[dead] = -np.inf
-        uAr[dead] = np.inf
+        scale = state.row_scale
+        scale[:m] = np.abs(A[:m]).max(axis=1, initial=0.0)
+        dead = np.abs(Ar).max(axis=1) <= DEAD_TOL * (1.0 + scale)
+        dead &= kept
+        state.conflicting = False
+        if dead.any():
+            state.conflicting = bool(np.any(((lAr > 0.0) | (uAr < 0.0)) & dead))
+            lAr[dead] = -np.inf
+            uAr[dead] = np.inf
         return rank
 
     def _compress_task_rows(self, state: _BlockState) -> bool:

@@ -159,7 +159,7 @@ class Lag(Actuation):
 class Saturation(Actuation):
     """Velocity and acceleration limits of the actuators: the velocity change over a tick is
     clipped to ``±acceleration·dt``, then the velocity to ``±velocity`` (rate limit, then
-    saturation: the projection onto both intervals, DESIGN math note 5).
+    saturation: the projection onto both intervals, docs/DESIGN.md, math note 5).
 
     Args:
         velocity: limits [m/s or rad/s] (scalar or one per selected joint; ``inf`` for none).
