@@ -22,8 +22,9 @@ from pathlib import Path
 # has an ``__all__``, so pdoc would not list its modules by itself).
 MODULES = ["wbc", "wbc.variables", "wbc.terms", "wbc.stack", "wbc.compiler", "wbc.workspace",
            "wbc.controller", "wbc.solution", "wbc.qp", "wbc.quantities", "wbc.infeasibility",
-           "wbc.jit", "wbc.fused", "wbc.checks", "wbc.errors", "wbc.sim", "wbc.tasks",
-           "wbc.robots", "wbc.solvers", "wbc.solvers.reference", "wbc.experiments.study"]
+           "wbc.passes", "wbc.cbuild", "wbc.jit", "wbc.fused", "wbc.checks", "wbc.lie",
+           "wbc.errors", "wbc.sim", "wbc.tasks", "wbc.robots", "wbc.solvers",
+           "wbc.solvers.reference", "wbc.experiments.studies.study"]
 ROLE = re.compile(r":(?:class|func|meth|mod|attr|data|exc|obj):`~?([^`]+)`")
 NAMEDTUPLE_LIMITATION = r"Error parsing type annotation .* for wbc\.robots\.\w+\.__init__\."
 
@@ -43,6 +44,11 @@ def main(argv: list[str] | None = None) -> int:
         return convert(ROLE.sub(r"`\1`", docstring), docformat, source_file)
 
     pdoc.docstrings.convert = without_roles
+    # wbc imports Controller on first use (a module __getattr__, so that the task library does
+    # not load the fused tick); pdoc reads the module's namespace, so put it there first
+    import wbc
+
+    vars(wbc).setdefault("Controller", wbc.Controller)
     pdoc.render.configure(docformat="google", show_source=False)
     with warnings.catch_warnings():
         warnings.simplefilter("error")

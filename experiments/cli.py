@@ -3,7 +3,7 @@
 
 Each sub-command forwards its remaining arguments to the ``main(argv)`` of its experiment
 module, so ``wbc bench --help`` shows that study's own options; ``wbc study NAME ...`` forwards
-to the paper study ``wbc.experiments.NAME`` (see :mod:`wbc.experiments.study`).
+to the paper study ``wbc.experiments.studies.NAME`` (see :mod:`wbc.experiments.studies.study`).
 
 Exit codes, for every verb: 0 when the job ran; 2 for a bad argument (argparse's message, on
 stderr); 1 when it failed at run time — a :class:`~wbc.WbcError` (e.g. a missing optional peer,
@@ -22,16 +22,19 @@ from collections.abc import Callable
 from importlib.metadata import version
 
 COMMANDS = {
-    "demo": ("wbc.experiments.microbench", "one stack on every backend: agreement and timing"),
-    "bench": ("wbc.experiments.solver_timing", "solver-timing study over robots, stacks, "
-              "backends"),
-    "pink": ("wbc.experiments.vs_pink", "head-to-head with pink on the Panda"),
-    "mink": ("wbc.experiments.vs_mink", "head-to-head with mink on the Panda"),
-    "placo": ("wbc.experiments.vs_placo", "head-to-head with placo (C++) on the Panda"),
-    "fuzz": ("wbc.experiments.fuzz", "fuzz campaign: bad stacks, data, states on every backend"),
-    "audit": ("wbc.experiments.audit", "closed-loop limit audits: every robot, exact backends"),
-    "exactness": ("wbc.experiments.exactness", "every backend against an exact referee on "
-                  "random, saturating and strict-priority states"),
+    "demo": ("wbc.experiments.benchmarks.microbench",
+             "one stack on every backend: agreement and timing"),
+    "bench": ("wbc.experiments.benchmarks.solver_timing",
+              "solver-timing study over robots, stacks, backends"),
+    "pink": ("wbc.experiments.peers.vs_pink", "head-to-head with pink on the Panda"),
+    "mink": ("wbc.experiments.peers.vs_mink", "head-to-head with mink on the Panda"),
+    "placo": ("wbc.experiments.peers.vs_placo", "head-to-head with placo (C++) on the Panda"),
+    "fuzz": ("wbc.experiments.campaigns.fuzz",
+             "fuzz campaign: bad stacks, data, states on every backend"),
+    "audit": ("wbc.experiments.campaigns.audit",
+              "closed-loop limit audits: every robot, exact backends"),
+    "exactness": ("wbc.experiments.campaigns.exactness", "every backend against an exact referee "
+                  "on random, saturating and strict-priority states"),
     "reproduce": ("wbc.experiments.reproduce", "every paper study, bench and peers in one "
                   "report (REPORT.md)"),
 }
@@ -59,7 +62,7 @@ def run_study(argv: list[str]) -> int:
               file=sys.stderr)
         return 2
     name, rest = argv[0], argv[1:]
-    module = f"wbc.experiments.{name}"
+    module = f"wbc.experiments.studies.{name}"
     if importlib.util.find_spec(module) is None:
         from wbc.errors import WbcError
 

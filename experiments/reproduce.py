@@ -36,9 +36,9 @@ PAPERS = {"sorour": "Sorour, Cherubini, Fraisse — steerable wheeled mobile man
           "petric": "Petrič, Žlajpah — spatially modulated velocity fields",
           "omni": "Omnidirectional platform with torque redundancy — slip-avoiding distribution",
           "xing": "Xing et al. — adaptive motion planning (AMP)"}
-PEERS = {"pink": ("wbc.experiments.vs_pink", "pink", "pip install 'wbc[pink]'"),
-         "mink": ("wbc.experiments.vs_mink", "mink", "pip install 'wbc[mink]'"),
-         "placo": ("wbc.experiments.vs_placo", "placo", "pip install 'wbc[placo]'")}
+PEERS = {"pink": ("wbc.experiments.peers.vs_pink", "pink", "pip install 'wbc[pink]'"),
+         "mink": ("wbc.experiments.peers.vs_mink", "mink", "pip install 'wbc[mink]'"),
+         "placo": ("wbc.experiments.peers.vs_placo", "placo", "pip install 'wbc[placo]'")}
 
 
 @dataclass
@@ -57,13 +57,13 @@ class Step:
 
 def plan(out: Path, quick: bool) -> list[Step]:
     """The steps of a full (or ``quick``) reproduction writing into ``out``."""
-    steps = [Step(f"study {name}", f"wbc.experiments.{name}",
+    steps = [Step(f"study {name}", f"wbc.experiments.studies.{name}",
                   ["--out", str(out), *(["--quick"] if quick else [])]) for name in PAPERS]
     bench = (["--robots", "mecanum_gen3", "--stacks", "one_level", "three_levels", "--ticks",
               "60", "--warmup", "5", "--scaling-ticks", "20", "--scaling-joints", "7", "30"]
              # 3000 interleaved ticks per cell (issue #17's protocol): ≈ 4 min on 2 cores
              if quick else ["--ticks", "3000", "--scaling-ticks", "3000"])
-    steps.append(Step("bench", "wbc.experiments.solver_timing",
+    steps.append(Step("bench", "wbc.experiments.benchmarks.solver_timing",
                       [*bench, "--out", str(out / "bench")]))
     for peer, (module, package, hint) in PEERS.items():
         ticks = ["--ticks", "150", "--backends", "daqp"] if quick else ["--ticks", "3000"]

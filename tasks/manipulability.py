@@ -22,8 +22,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from wbc.checks import check_robot, checked_name, checked_number
-from wbc.controller import check_frame
+from wbc.checks import check_frame, check_robot, checked_name, checked_number
 from wbc.errors import WbcError
 from wbc.quantities import registry_of
 from wbc.terms import Cost, Task

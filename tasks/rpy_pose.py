@@ -29,8 +29,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from wbc.checks import check_robot, checked_name, checked_number
-from wbc.controller import check_frame
+from wbc.checks import check_frame, check_robot, checked_name, checked_number
 from wbc.terms import Cost, Task
 
 from .frame import velocity_block

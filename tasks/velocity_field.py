@@ -14,8 +14,10 @@ Pipeline of one tick (:meth:`VelocityField.step`):
 3. raw laws (:meth:`~VelocityField.raw`): ``v`` of eq. 7, ``ω`` of eqs. 8–13;
 4. exponential smoothing against the previous applied command (eqs. 14–15,
    :meth:`~VelocityField.smooth`);
-5. rate limit then saturation (eqs. 16–18, :func:`wbc.solvers.reference_petric.rate_limited_twist`);
-   the same stage as a QP level a stack can carry: :meth:`~VelocityField.rate_limit_level`.
+5. rate limit then saturation (eqs. 16–18): the two-stage clip, written out here (tasks import
+   no solver; its closed form, the tests' oracle, is
+   :func:`wbc.solvers.reference_petric.rate_limited_twist`); the same stage as a QP level a
+   stack can carry: :meth:`~VelocityField.rate_limit_level`.
 
 **Readings of the printed equations** (decided here, each tested):
 
@@ -68,7 +70,6 @@ import numpy as np
 
 from wbc.checks import all_finite, as_float_array, checked_name, checked_number
 from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
-from wbc.solvers.reference_petric import rate_limited_twist
 from wbc.terms import Cost, VariableBounds
 
 __all__ = ["VelocityField", "smoothstep"]
@@ -261,8 +262,11 @@ class VelocityField:
         it as :attr:`command` for the next tick."""
         d_f, d_r, phi = self._geometry(*self._point(p))
         raw = self._laws(d_f, d_r, phi, self._latch(d_r, phi))
-        smoothed = self.smooth(raw, self.command)
-        self.command = rate_limited_twist(smoothed, self.command, self.limit, self.rate_limit)
+        smoothed, previous = self.smooth(raw, self.command), self.command
+        # eqs. 16-17, the two-stage clip; its closed form with checked arguments, the oracle
+        # of the tests and of rate_limit_level, is wbc.solvers.reference_petric's
+        self.command = np.clip(previous + np.clip(smoothed - previous, -self.rate_limit,
+                                                  self.rate_limit), -self.limit, self.limit)
         return float(self.command[0]), float(self.command[1])
 
     # ------------------------------------------------------------------ eqs. 16-17 as a QP level

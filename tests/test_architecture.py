@@ -1,6 +1,6 @@
 """The core's imports point one way: no module of ``wbc/`` (nor of ``solvers/``, which is
-``wbc.solvers``) imports one that imports it back, and ``import wbc`` loads no robot, solver or
-experiment module."""
+``wbc.solvers``) imports one that imports it back, ``import wbc`` loads no robot, solver or
+experiment module, and ``import wbc.tasks`` no backend, controller, fused tick or simulator."""
 
 from __future__ import annotations
 
@@ -11,6 +11,11 @@ from pathlib import Path
 
 CORE = Path(__file__).resolve().parents[1] / "wbc"
 SOLVERS = Path(__file__).resolve().parents[1] / "solvers"  # installed as wbc.solvers
+TASKS = Path(__file__).resolve().parents[1] / "tasks"  # installed as wbc.tasks
+#: what the task library must not load: backends, the controller and its fused tick (with the
+#: C compilation), the simulator — and, as the imports point one way, robots and studies
+NOT_FOR_TASKS = ("wbc.solvers", "wbc.controller", "wbc.fused", "wbc.jit", "wbc.passes",
+                 "wbc.cbuild", "wbc.sim", "wbc.robots", "wbc.experiments")
 
 
 def module_name(path: Path, root: Path, package: str | None = None) -> str:
@@ -115,3 +120,83 @@ def test_import_wbc_loads_no_robot_solver_or_experiment():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip()
     assert out == "", f"import wbc loaded {out}"
+
+
+def _loaded_in_a_fresh_interpreter(code: str) -> list[str]:
+    """The ``wbc`` modules in ``sys.modules`` after running ``code`` in a new interpreter."""
+    code += "\nimport sys; print(sorted(m for m in sys.modules if m.startswith('wbc')))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    return ast.literal_eval(out.strip().splitlines()[-1])
+
+
+def _forbidden_for_tasks(modules) -> list[str]:
+    return [m for m in modules if any(m == bad or m.startswith(bad + ".")
+                                      for bad in NOT_FOR_TASKS)]
+
+
+def test_import_wbc_tasks_loads_no_backend_controller_fused_tick_or_simulator():
+    loaded = _loaded_in_a_fresh_interpreter("import wbc.tasks")
+    assert "wbc.tasks.frame" in loaded and "wbc.lie" in loaded  # the probe sees the imports
+    assert not _forbidden_for_tasks(loaded), f"import wbc.tasks loaded {loaded}"
+
+
+def test_every_task_module_loads_no_backend_controller_fused_tick_or_simulator():
+    """Also the task modules ``wbc.tasks`` does not import itself (``manipulability``)."""
+    names = sorted(module_name(f, TASKS, "wbc.tasks") for f in TASKS.glob("*.py"))
+    assert "wbc.tasks.manipulability" in names
+    loaded = _loaded_in_a_fresh_interpreter("".join(f"import {n}\n" for n in names))
+    assert not _forbidden_for_tasks(loaded), f"the task modules loaded {loaded}"
+
+
+class _EveryName(set):
+    """A ``known`` for :func:`imported_modules` that keeps every imported name."""
+
+    def __contains__(self, name) -> bool:
+        return True
+
+
+def _forbidden_imports(path: Path, root: Path) -> list[str]:
+    return sorted(_forbidden_for_tasks(imported_modules(path, root, _EveryName(), "wbc.tasks")))
+
+
+def test_no_task_module_imports_a_backend_controller_or_simulator_even_lazily():
+    """The static form of the two tests above: no import statement in ``tasks/`` (inside a
+    function or not) names a module the task library must not load."""
+    found = {f.name: _forbidden_imports(f, TASKS) for f in sorted(TASKS.glob("*.py"))}
+    assert "frame.py" in found and not any(found.values()), found
+
+
+def test_the_task_check_finds_a_forbidden_import(tmp_path):
+    """The static check above can fail: an import of the controller inside a function and one
+    of a solver module are found; a relative import of a task module is not."""
+    module = tmp_path / "tasks" / "bad.py"
+    module.parent.mkdir()
+    module.write_text("from .frame import velocity_block\nimport wbc.solvers.reference\n"
+                      "def f():\n    from wbc.controller import check_frame\n")
+    assert _forbidden_imports(module, module.parent) == [
+        "wbc.controller", "wbc.controller.check_frame", "wbc.solvers.reference"]
+
+
+def test_the_lie_group_math_is_pure_casadi():
+    """``wbc/lie.py`` imports casadi and numpy only: nothing of the core, tasks, robots or
+    solvers (any module may build on it)."""
+    tree = ast.parse((CORE / "lie.py").read_text())
+    imported = {alias.name.split(".")[0] for node in ast.walk(tree)
+                if isinstance(node, ast.Import) for alias in node.names}
+    imported |= {(node.module or "").split(".")[0] or "." for node in ast.walk(tree)
+                 if isinstance(node, ast.ImportFrom) and node.module != "__future__"}
+    assert imported == {"casadi", "numpy"}, imported
+
+
+def test_the_old_homes_still_answer():
+    """``wbc.tasks.frame`` re-exports the Lie-group math it used to define (the Xing study and
+    the tests import ``so3_log`` from there); ``wbc.controller.check_frame`` is importable."""
+    import wbc.lie
+    import wbc.tasks.frame
+    from wbc.checks import check_frame
+    from wbc.controller import check_frame as check_frame_of_the_controller
+
+    for name in wbc.lie.__all__:
+        assert getattr(wbc.tasks.frame, name) is getattr(wbc.lie, name), name
+    assert callable(check_frame_of_the_controller) and callable(check_frame)

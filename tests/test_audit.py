@@ -10,7 +10,7 @@ import pytest
 from helpers import Constant
 
 import wbc.robots
-from wbc.experiments import audit
+from wbc.experiments.campaigns import audit
 from wbc.solvers import available_backends
 
 EXACT = [b for b in audit.EXACT if b in available_backends()]

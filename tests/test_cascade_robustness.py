@@ -9,7 +9,7 @@ import pytest
 
 import wbc
 import wbc.robots
-from wbc.experiments import solver_timing
+from wbc.experiments.benchmarks import solver_timing
 from wbc.qp import QPResult, Status
 from wbc.solvers import make_backend
 from wbc.tasks import Bounds, LinearTask

@@ -8,7 +8,8 @@ import sys
 
 import pytest
 
-from wbc.experiments import cli, microbench, solver_timing
+from wbc.experiments import cli
+from wbc.experiments.benchmarks import microbench, solver_timing
 
 
 def test_list_names_robots_tasks_and_backends(capsys):

@@ -163,7 +163,7 @@ def test_studies_report_the_lines_in_their_timing(tmp_path, capfd):
     """``study_main`` adds ``console_lines`` to the timing of a backend that printed during the
     study (``wbc study xing --quick --backend qpoases``: 246 lines, none on the terminal)."""
     backend_or_skip("qpoases")
-    from wbc.experiments.study import StudyResult, study_main, timing_summary
+    from wbc.experiments.studies.study import StudyResult, study_main, timing_summary
 
     def run(backend, out_dir, quick):
         solve_twice(make_backend(backend), PETRIC_LEVEL)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import wbc.robots
-from wbc.experiments import exactness
+from wbc.experiments.campaigns import exactness
 from wbc.fused import compiler_available
 
 STATES = 200  # per family (the saturating family's 64 loops round it up to 320 ticks)

@@ -5,6 +5,7 @@ No speed is asserted."""
 
 from __future__ import annotations
 
+import time
 import tracemalloc
 
 import casadi as ca
@@ -118,6 +119,52 @@ def test_an_infeasible_tick_keeps_its_status_and_message(workspaces, crossing):
               **{"floor.lower": np.full(N, -np.inf)})
     assert fused.solve().ok  # and the next tick is fused again
     assert fused.fallback_solves == failures + 1
+
+
+def test_the_solver_callable_is_solve_with_the_model_time(workspaces):
+    """:meth:`FusedWorkspace.solver` hands out the fused solve itself: an answered tick returns
+    :attr:`~FusedWorkspace.fused_solution` (as ``solve()`` does), with ``timings.model`` the
+    time from ``started`` to the call; a failed call returns the ordinary path's own solution,
+    timed the same way."""
+    fused = workspaces[0]
+    solve = fused.solver()
+    assert solve is fused.solver()  # built once
+    fused.set(**instance(np.random.default_rng(11), active=True))
+    assert fused.solve() is fused.fused_solution
+    started = time.perf_counter() - 1.0  # a caller's tick that began one second ago
+    solution = solve(started)
+    assert solution is fused.fused_solution and solution.ok
+    assert 1.0 <= solution.timings.model < 2.0 and 0.0 < solution.timings.solve < 1.0
+    data = instance(np.random.default_rng(12), active=False)
+    data["floor.lower"] = np.full(N, -np.inf)
+    data["floor.lower"][2] = 11.0  # crossed sides: the fused call fails
+    failures = fused.fallback_solves
+    failed = fused.set(**data).solver()(started)
+    assert failed is not fused.fused_solution and failed.status is wbc.Status.INFEASIBLE
+    assert fused.fallback_solves == failures + 1 and 1.0 <= failed.timings.model < 2.0
+    data["floor.lower"] = np.full(N, -np.inf)
+    assert fused.set(**data).solve() is fused.fused_solution  # fused again
+
+
+def test_the_controller_reads_no_private_attribute_of_its_workspace():
+    """The tick is the workspace's public operation: ``wbc/controller.py`` reads no ``_name``
+    of a workspace (``self.workspace``, ``workspace``, ``ws``)."""
+    import ast
+    from pathlib import Path
+
+    import wbc.controller
+
+    source = Path(wbc.controller.__file__).read_text()
+
+    def is_workspace(node: ast.expr) -> bool:
+        return ((isinstance(node, ast.Name) and node.id in ("workspace", "ws"))
+                or (isinstance(node, ast.Attribute) and node.attr == "workspace"))
+
+    private = sorted({f"{ast.unparse(node.value)}.{node.attr}"
+                      for node in ast.walk(ast.parse(source))
+                      if isinstance(node, ast.Attribute) and node.attr.startswith("_")
+                      and not node.attr.startswith("__") and is_workspace(node.value)})
+    assert private == []
 
 
 def scaling_stack() -> wbc.Stack:
@@ -246,10 +293,10 @@ def test_a_certified_cascade_touching_bounds_stays_on_the_fused_path(saturated):
 
 
 def test_the_certificate_rejects_an_inexact_answer():
-    """The certificate (:func:`wbc.fused._certified`) on the fused cascade's own answer holds;
+    """The certificate (:func:`wbc.passes._certified`) on the fused cascade's own answer holds;
     moved off an active bound by 1e-7, or with a bound multiplier of the wrong sign, it does
     not."""
-    from wbc.fused import _cascade, _certified, fused_settings
+    from wbc.passes import _cascade, _certified, fused_settings
 
     compiled = saturated_cascade(True)
     fused = FusedWorkspace(compiled, "default", compile=False)
@@ -505,6 +552,17 @@ def test_a_subclass_step_stays_in_charge(robot):
     assert ctrl.calls == 2 and ctrl.fused and ctrl.last_solution.ok
 
 
+def test_step_is_a_method_of_the_class(controllers):
+    """``Controller.step`` is the class's method on every path (no closure stored on the
+    instance in its place): what readers, ``help`` and tools see is what runs."""
+    import inspect
+
+    for ctrl in controllers:
+        assert ctrl.step.__func__ is wbc.Controller.step  # (a bound method, not a closure)
+        assert list(inspect.signature(ctrl.step).parameters) == ["q", "v", "out",
+                                                                 "references"]
+
+
 def test_bad_input_is_refused_before_any_write(controllers):
     fused = controllers[0]
     fused.step(Q0)
@@ -593,7 +651,7 @@ def test_a_fused_tick_allocates_nothing_in_steady_state(robot, controllers, casc
 
 def test_the_generated_daqp_code_is_patched_or_refused():
     """CasADi's generated daqp code leaves the QP's success flag unset when daqp's setup fails
-    (see :func:`wbc.fused.initialise_success`): the patch sets it, and code of another shape
+    (see :func:`wbc.passes.initialise_success`): the patch sets it, and code of another shape
     is refused rather than compiled."""
     from wbc.fused import initialise_success
 

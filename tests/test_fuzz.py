@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import wbc
-from wbc.experiments import fuzz
+from wbc.experiments.campaigns import fuzz
 from wbc.solvers import available_backends
 
 

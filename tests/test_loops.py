@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wbc.experiments.loops import (
+from wbc.experiments.benchmarks.loops import (
     call_turn,
     closed_loop_turn,
     goal_schedule,

@@ -11,7 +11,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from helpers import assert_study_contract
 
-from wbc.experiments import omni  # noqa: E402
+from wbc.experiments.studies import omni  # noqa: E402
 
 CLAIMS = {"two_wheel_shortfall", "four_wheel_error", "four_wheels_worse_than_two",
           "two_wheel_shortfall_reference", "four_wheel_error_reference",

@@ -140,7 +140,7 @@ def test_study_arm_stack_is_eq_22_on_the_tiago_panda(tiago, backend, projector):
     below; damped: one level with the posture weighted by λ) on the robot =
     ``dls_arm_velocity`` of the arm's position Jacobian with ``u = K_p e`` and
     ``q̇_n = K_n (q_mid − q)``, at random configurations and targets."""
-    from wbc.experiments import petric
+    from wbc.experiments.studies import petric
 
     robot = tiago
     controller = wbc.Controller(robot, petric.arm_stack(robot, projector=projector),
@@ -166,7 +166,7 @@ def test_study_arm_stack_is_eq_22_on_the_tiago_panda(tiago, backend, projector):
 
 
 def test_study_arm_stack_refuses_an_unknown_projector(tiago):
-    from wbc.experiments import petric
+    from wbc.experiments.studies import petric
 
     with pytest.raises(wbc.InvalidValueError, match="projector"):
         petric.arm_stack(tiago, projector="pseudo")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from helpers import assert_study_contract
 
-from wbc.experiments import petric
+from wbc.experiments.studies import petric
 from wbc.tasks import VelocityField
 
 

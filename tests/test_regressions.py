@@ -169,7 +169,7 @@ def test_constant_objective_level_is_solved(backend, rows):
 def test_proxqp_tick_is_bounded_on_a_badly_scaled_level():
     """wbc fuzz's stack structure 0 of seed 1: a level with H up to 1e13 made ProxQP iterate
     for 48 s (10⁴ × 1500 iterations); the default profile now stops it well under 1 s."""
-    from wbc.experiments import fuzz
+    from wbc.experiments.campaigns import fuzz
 
     for case, _, defect, message in fuzz.stack_cases("proxqp", seed=1, structures=1, draws=1):
         assert defect is None, (case["tick"], message)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from helpers import assert_study_contract
 
-from wbc.experiments import sorour
 from wbc.experiments.cli import main as cli_main
+from wbc.experiments.studies import sorour
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from wbc.experiments.study import (  # noqa: E402
+from wbc.experiments.studies.study import (  # noqa: E402
     Claim,
     StudyResult,
     save_figure,

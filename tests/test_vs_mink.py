@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from wbc.errors import MissingDependencyError
-from wbc.experiments import vs_mink
+from wbc.experiments.peers import vs_mink
 
 KEYS = {"wbc_median_s", "mink_median_s", "ratio", "command_diff_max", "wbc_error_vs_exact_max",
         "mink_error_vs_exact_max", "agree", "final_position_diff_m", "final_rotation_diff_rad"}

@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from wbc.errors import MissingDependencyError
-from wbc.experiments import vs_pink
+from wbc.experiments.peers import vs_pink
 
 KEYS = {"wbc_median_s", "pink_median_s", "ratio", "command_diff_max", "agree",
         "final_position_diff_m"}

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from wbc.errors import MissingDependencyError
-from wbc.experiments import vs_placo
+from wbc.experiments.peers import vs_placo
 
 
 def test_the_model_placo_loads_is_wbcs_panda(tmp_path):

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 import wbc
 import wbc.robots as robots
 from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
-from wbc.experiments import xing
+from wbc.experiments.studies import xing
 from wbc.tasks import JointAccelerationLimit, joint_acceleration_bounds
 from wbc.tasks.joint_acceleration import _CASADI, _bounds
 

@@ -18,7 +18,7 @@ from test_equivalence import SCALING_STALLS, SCALING_TOL, SCALING_UNRELIABLE
 
 import wbc
 import wbc.robots as robots
-from wbc.experiments import xing
+from wbc.experiments.studies import xing
 from wbc.solvers import available_backends
 from wbc.solvers import reference as ref
 from wbc.tasks import Bounds, LinearTask

@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 
 from helpers import assert_study_contract
 
-from wbc.experiments import xing  # noqa: E402
+from wbc.experiments.studies import xing  # noqa: E402
 from wbc.solvers import available_backends  # noqa: E402
 
 CLAIMS = {"base_still_r010_amp_qp", "base_still_r010_amp_closed_form",

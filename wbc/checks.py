@@ -19,8 +19,9 @@ CasADi's or pinocchio's own exception, never at the first tick:
   :func:`checked_integer` — a count;
 * :func:`checked_weights` — a cost weight: a number, one per row, or a CasADi SX expression of the
   stack's parameters (evaluated every tick);
-* :func:`checked_name`, :func:`checked_shape`, :func:`check_robot`, :func:`check_symbols` —
-  names, parameter shapes, robots, the symbols of an expression;
+* :func:`checked_name`, :func:`checked_shape`, :func:`check_robot`, :func:`check_frame`,
+  :func:`check_symbols` — names, parameter shapes, robots, a robot's frame names, the symbols of
+  an expression;
 * :func:`check_pose` — a homogeneous transform whose rotation is one (on the control tick:
   ≈ 0.7 µs on a 4 × 4, pure Python floats).
 """
@@ -34,7 +35,13 @@ from typing import Literal, overload
 import casadi as ca
 import numpy as np
 
-from .errors import BoundsOrderError, InvalidValueError, NonFiniteError, ShapeError
+from .errors import (
+    BoundsOrderError,
+    InvalidValueError,
+    NonFiniteError,
+    ShapeError,
+    UnknownNameError,
+)
 
 _ndarray, _FLOAT = np.ndarray, np.dtype(float)
 _REAL_KINDS = "iuf"  # numpy dtype kinds of real numbers (booleans are not numbers here)
@@ -255,6 +262,22 @@ def check_robot(robot, what: str) -> tuple[int, int]:
                                 f"wbc.robots), got {_kind(robot)}")
     return int(nq), int(nv)  # type: ignore[arg-type]
 
+
+
+def check_frame(robot, frame: str, what: str) -> None:
+    """Raise :class:`~wbc.UnknownNameError` if ``robot`` knows its frames (``has_frame`` or
+    ``frame_names``) and ``frame`` is not one of them."""
+    known = getattr(robot, "frame_names", None)
+    has_frame = getattr(robot, "has_frame", None)
+    if has_frame is not None:
+        ok = has_frame(frame)
+    elif known is not None:
+        ok = frame in known
+    else:
+        return
+    if not ok:
+        raise UnknownNameError(f"{what}: unknown frame {frame!r}"
+                               + (f"; frames are {sorted(known)}" if known else ""))
 
 def check_pose(T: np.ndarray, what: str) -> None:
     """Raise :class:`InvalidValueError` naming ``what`` unless the ``(4, 4)`` float array ``T``

@@ -29,7 +29,7 @@ robot does not offer is an :class:`~wbc.UnknownNameError` listing what it offers
 
 With ``kinematics="compiled"`` (or ``"auto"``, the default) the quantities that have a symbolic
 form are computed inside the compiled level functions from ``"q"`` (and ``"v"``) instead: same
-values, no robot call on the tick (see :func:`compiled_kinematics`).
+values, no robot call on the tick (see :func:`wbc.passes.compiled_kinematics`).
 
 Every other parameter is a *reference*, set through :meth:`Controller.step`'s keywords: key
 ``k`` sets parameter ``k`` if it exists, else ``"k.target"`` (so ``step(q, ee=T)`` sets the
@@ -53,10 +53,13 @@ failed. ``solution.timings.model`` holds the first four steps.
 
 On the fused path (the default for a stack on daqp without task-scaling levels, with a C
 compiler, see :mod:`wbc.fused`), the solve is one call of a generated C function holding the
-compiled kinematics, the assembly and the daqp solves of every level (``timings.solve``), made
-by the tick itself (a closure over the buffers, built once); a tick it does not solve is
-solved again on the ordinary path, so statuses, partial solutions and fallbacks read the same.
-The returned command and ``last_solution`` are then reused buffers.
+compiled kinematics, the assembly and the daqp solves of every level (``timings.solve``).
+:meth:`Controller.step` makes it through the callable the workspace hands out once
+(:meth:`wbc.fused.FusedWorkspace.solver`: the fused solve without a method call around it); a
+tick it does not solve is solved again on the ordinary path, so statuses, partial solutions and
+fallbacks read the same. A solved tick's solution is then the workspace's reused one
+(:attr:`~wbc.fused.FusedWorkspace.fused_solution`), copied when ``last_solution`` is first
+read.
 
 A failed tick costs about what a solved one does: the search for the conflicting constraints
 (:mod:`wbc.infeasibility`) runs when ``solution.conflict`` or ``solution.message`` is read.
@@ -64,16 +67,16 @@ A failed tick costs about what a solved one does: the search for the conflicting
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import time
 import warnings
+from collections.abc import Callable
+from typing import NamedTuple
 
-import casadi as ca
 import numpy as np
 
+from .cbuild import compiler_available
 from .checks import all_finite, as_float_array, check_pose, checked_array
-from .compiler import CompiledStack
+from .checks import check_frame as check_frame  # re-exported: wbc.controller.check_frame
 from .errors import (
     InfeasibleError,
     InvalidValueError,
@@ -82,9 +85,9 @@ from .errors import (
     UnknownNameError,
     WbcError,
 )
-from .fused import FusedWorkspace, compiler_available, why_not_fused
+from .fused import FusedWorkspace
 from .infeasibility import fixed_conflict
-from .jit import jit_compiled
+from .passes import compiled_kinematics, jit_compiled, why_not_fused
 from .qp import Status
 from .quantities import STATE_QUANTITIES, registry_of
 from .solution import Solution
@@ -93,26 +96,20 @@ from .workspace import BackendSpec, Workspace
 
 FALLBACKS = ("hold", "last", "decelerate", "raise")
 # for the tick: module globals, looked up faster than attributes
-_clock, _ndarray, _FLOAT = time.perf_counter, np.ndarray, np.dtype(float)
-_NAN = math.nan
+_clock, _ndarray, _FLOAT, _copyto = time.perf_counter, np.ndarray, np.dtype(float), np.copyto
 _SOLVED = Status.SOLVED
 DECELERATION = 0.5  # "decelerate": the previous command's share kept per failed tick
 
 
-def check_frame(robot, frame: str, what: str) -> None:
-    """Raise :class:`~wbc.UnknownNameError` if ``robot`` knows its frames (``has_frame`` or
-    ``frame_names``) and ``frame`` is not one of them."""
-    known = getattr(robot, "frame_names", None)
-    has_frame = getattr(robot, "has_frame", None)
-    if has_frame is not None:
-        ok = has_frame(frame)
-    elif known is not None:
-        ok = frame in known
-    else:
-        return
-    if not ok:
-        raise UnknownNameError(f"{what}: unknown frame {frame!r}"
-                               + (f"; frames are {sorted(known)}" if known else ""))
+class _HotPath(NamedTuple):
+    """What :meth:`Controller.step` reads on every tick, in one attribute (see there)."""
+
+    q_shape: tuple[int]
+    q_view: np.ndarray | None  # "q" in p
+    needs_v: bool
+    fillers: tuple  # (fill, view) per numeric model quantity
+    solve: Callable[[float], Solution]  # FusedWorkspace.solver(), or _solve_ordinary
+    fused_solution: Solution | None  # what solve returns when the fused call answered
 
 
 class Controller:
@@ -138,14 +135,14 @@ class Controller:
         kinematics: ``"numeric"`` — model quantities come from the robot's numeric fillers
             every tick; ``"compiled"`` — those with a symbolic form (frame poses, Jacobians,
             drifts of the catalogue robots) are computed *inside* the compiled level functions
-            from ``"q"`` (and ``"v"``), see :func:`compiled_kinematics`; the others stay
+            from ``"q"`` (and ``"v"``), see :func:`wbc.passes.compiled_kinematics`; the others stay
             numeric. The tick then calls no kinematics when every quantity is symbolic, and
             those parameters no longer exist in the workspace (same values to round-off, a
             ≈ 35 µs shorter tick on the catalogue robots); ``"auto"`` (default) — compiled
             when the robot offers symbolic forms, else numeric. ``self.kinematics`` holds the
             choice made.
         jit: evaluate the level functions as compiled C (needs a C compiler; each function is
-            built once per machine, 0.1–0.5 s, and cached on disk, see :mod:`wbc.jit`;
+            built once per machine, 0.1–0.5 s, and cached on disk, see :mod:`wbc.cbuild`;
             evaluation drops from ≈ 8 µs to ≈ 0.6 µs for a Panda pose + posture level).
             ``"auto"`` (default): when a C compiler is on the path (``$CC``, default ``cc``),
             else the CasADi virtual machine. ``True`` without a compiler: a warning and the
@@ -231,10 +228,18 @@ class Controller:
         self.dt = dt
         # keyword -> (parameter name, view, allow_inf), cached
         self._references: dict[str, tuple] = {}  # keyword -> see _reference
-        self._tick = self._tick_function()
+        # the solve step calls: on the fused path the callable FusedWorkspace.solver() hands
+        # out, bound once, and the reused solution it answers with
+        workspace = self.workspace
+        solve: Callable[[float], Solution]
+        self._live_solution: Solution | None
+        if isinstance(workspace, FusedWorkspace):
+            solve, self._live_solution = workspace.solver(), workspace.fused_solution
+        else:
+            solve, self._live_solution = self._solve_ordinary, None
+        self._hot = _HotPath(self._q_shape, self._q, self._needs_v, tuple(self._fillers),
+                             solve, self._live_solution)
         stack._controlled = True  # edits after this would not reach the compiled snapshot
-        if type(self).step is Controller.step:  # (a subclass's own step stays in charge)
-            self.step = self._tick  # type: ignore[method-assign]  # one call less per tick
 
     def _fused_workspace(self, fused, backend, profile, warm_start, options):
         """A :class:`~wbc.fused.FusedWorkspace` if the fused path applies (see ``fused`` in the
@@ -298,6 +303,7 @@ class Controller:
             self.model_parameters.append(name)
         self._zero_v = np.zeros(self.nv)
         self._q_shape, self._v_shape = (self.nq,), (self.nv,)
+        self._x_shape = (compiled.n,)
 
     @property
     def reference_names(self) -> list[str]:
@@ -402,94 +408,62 @@ class Controller:
             The command: the decision vector ``x`` of the solution, or the fallback's — a new
             array that no later tick writes (``out`` itself when given), on every path and
             backend.
-
-        (Each controller holds the tick as a closure over its buffers, made once by
-        :meth:`_tick_function`; ``controller.step`` is that closure, this method calls it.)
         """
-        return self._tick(q, v, out, **references)
+        # The checks' messages are built only on failure (_refuse). The hot path reads module
+        # globals and one tuple of what _plan and __init__ prepared (an attribute read each
+        # would cost ≈ 1 % of a Panda tick, more once the instance __dict__ is materialised).
+        t0 = _clock()
+        q_shape, q_view, needs_v, fillers, solve, fused_solution = self._hot
+        if type(q) is not _ndarray or q.dtype is not _FLOAT:  # else asarray would return q
+            q = as_float_array(q, "q")
+        if q.shape != q_shape or not all_finite(q):
+            self._refuse("q", q, self.nq)
+        if v is not None:
+            if type(v) is not _ndarray or v.dtype is not _FLOAT:
+                v = as_float_array(v, "v")
+            if v.shape != self._v_shape or not all_finite(v):
+                self._refuse("v", v, self.nv)
+        if out is not None and (type(out) is not _ndarray or out.shape != self._x_shape
+                                or out.dtype is not _FLOAT):
+            self._refuse_out(out, self.compiled.n)
+        if references:  # before any write: a refused reference leaves the state as it was
+            self._write_references(references)
+        if q_view is not None:
+            q_view[...] = q  # (≈ 0.1 µs less than q_view[:] = q)
+        if needs_v:
+            if v is None:
+                v = self._zero_v
+            v_view = self._v
+            if v_view is not None:
+                v_view[...] = v
+        if fillers:
+            self.robot.update(q, v if self._needs_drift else None)
+            for fill, view in fillers:
+                fill(view)
+        solution = solve(t0)  # its timings.model: from t0 to the solve
+        if solution is fused_solution:  # a fused call answered: the workspace's reused buffers
+            self._last_solution = solution
+            if out is None:
+                out = solution.x.copy()
+            else:
+                _copyto(out, solution.x)
+            self.last_command = out
+            return out
+        return self._conclude(solution, out)
 
-    def _tick_function(self):
-        """The tick as a closure over the controller's buffers and the workspace's calls (bound
-        once here): local names instead of attribute lookups, and on the fused path the
-        generated call made here without the workspace's method around it — ≈ 0.2 µs less
-        Python per tick on the Panda problem, measured interleaved with placo."""
-        ctrl, workspace, robot = self, self.workspace, self.robot
-        q_view, v_view, needs_v, needs_drift = self._q, self._v, self._needs_v, self._needs_drift
-        fillers, zero_v = tuple(self._fillers), self._zero_v
-        q_shape, v_shape, nq, nv = self._q_shape, self._v_shape, self.nq, self.nv
-        refuse, write_references, conclude = self._refuse, self._write_references, self._conclude
-        refuse_out, copyto = self._refuse_out, np.copyto
-        clock, ndarray, FLOAT, nan = _clock, _ndarray, _FLOAT, _NAN
-        finite = all_finite
-        fused = isinstance(workspace, FusedWorkspace)
-        n = self.compiled.n
-        if fused:
-            unset, after_failure = workspace._unset, workspace.solve_after_failed_call
-            solved_bookkeeping, no_qps = workspace.fused_tick_solved, workspace._no_qps
-            call, done, solution, timings = workspace.call_buffers()
-            x = solution.x
-            self._live_solution = solution
-        else:
-            self._live_solution = None
+    def _solve_ordinary(self, started: float) -> Solution:
+        """``workspace.solve()`` with ``timings.model`` the time from ``started`` to it (the
+        callable :meth:`step` calls when the tick is not fused; see
+        :meth:`wbc.fused.FusedWorkspace.solver`)."""
+        t1 = _clock()
+        solution = self.workspace.solve()
+        solution.timings.model = t1 - started
+        return solution
 
-        def tick(q, v=None, out=None, **references):
-            # the checks' messages are built only on failure (refuse)
-            t0 = clock()
-            if type(q) is not ndarray or q.dtype is not FLOAT:  # else asarray would return q
-                q = as_float_array(q, "q")
-            if q.shape != q_shape or not finite(q):
-                refuse("q", q, nq)
-            if v is not None:
-                if type(v) is not ndarray or v.dtype is not FLOAT:
-                    v = as_float_array(v, "v")
-                if v.shape != v_shape or not finite(v):
-                    refuse("v", v, nv)
-            if out is not None and (type(out) is not ndarray or out.shape != (n,)
-                                    or out.dtype is not FLOAT):
-                refuse_out(out, n)
-            if references:  # before any write: a refused reference leaves the state as it was
-                write_references(references)
-            if q_view is not None:
-                q_view[:] = q
-            if needs_v:
-                if v is None:
-                    v = zero_v
-                if v_view is not None:
-                    v_view[:] = v
-            if fillers:
-                robot.update(q, v if needs_drift else None)
-                for fill, view in fillers:
-                    fill(view)
-            # the fused call, unless a parameter was never set (the workspace raises) or the
-            # back-off after failed calls is running
-            if fused and not unset and not workspace._skip:
-                done[0] = nan
-                t1 = clock()
-                call()
-                t2 = clock()
-                if done[0] == done[0]:  # not NaN: every level solved
-                    if workspace._solved is not no_qps:  # the last tick took the ordinary path
-                        solved_bookkeeping()
-                    timings.model = t1 - t0
-                    timings.solve = t2 - t1
-                    ctrl._last_solution = solution
-                    if out is None:
-                        out = x.copy()
-                    else:
-                        copyto(out, x)
-                    ctrl.last_command = out
-                    return out
-                return conclude(after_failure(), t1 - t0, out)
-            t1 = clock()
-            return conclude(workspace.solve(), t1 - t0, out)
-
-        return tick
-
-    def _conclude(self, solution: Solution, model_time: float,
-                  out: np.ndarray | None = None) -> np.ndarray:
-        """The command of a solved (or failed) tick: the solution's ``x``, the partial
-        solution's, or the fallback's (a copy, or written into ``out``); records the tick."""
-        solution.timings.model = model_time
+    def _conclude(self, solution: Solution, out: np.ndarray | None = None) -> np.ndarray:
+        """The command of a tick no fused call answered (the ordinary path's solution, solved
+        or not): its ``x``, the partial solution's, or the fallback's (a copy, or written into
+        ``out``); records the tick."""
         if solution.status is _SOLVED:
             command = solution.x
         elif solution.partial and self.fallback != "raise":
@@ -545,84 +519,3 @@ class Controller:
     def __repr__(self) -> str:
         return (f"Controller(robot={self.robot!r}, backend={self.workspace.backend_name!r}, "
                 f"dt={self.dt}, fallback={self.fallback!r})")
-
-
-def compiled_kinematics(compiled: CompiledStack, robot) -> CompiledStack:
-    """A copy of ``compiled`` whose level functions compute every model quantity that has a
-    symbolic form (``robot.quantities``, e.g. ``"pose[<frame>]"``, ``"J[<frame>]"``,
-    ``"Jdot_v[<frame>]"``) from parameters ``"q"`` (and ``"v"`` for quantities that need it)
-    inside the compiled functions. Those parameters leave the layout; ``"q"`` and ``"v"`` are
-    appended if the stack needs them and had none.
-
-    Raises:
-        WbcError: no quantity of the stack has a symbolic form on this robot.
-    """
-    registry = registry_of(robot)
-    replaced, numeric_only = {}, []  # parameter name -> Quantity; names without symbolic form
-    for name in compiled.parameters:
-        if name in STATE_QUANTITIES:
-            continue
-        quantity = (registry.get(name) if name in compiled.quantities else
-                    registry.resolve(name))
-        if quantity is not None:
-            if quantity.symbolic is not None:
-                replaced[name] = quantity
-            else:
-                numeric_only.append(name)
-    if not replaced:
-        if numeric_only:
-            raise WbcError(f"kinematics='compiled' needs symbolic forms of the model quantities "
-                           f"{numeric_only} (e.g. robot.symbolic_frame(frame) -> "
-                           f"casadi.Function); {type(robot).__name__} offers none")
-        return compiled
-    params = dict(compiled.parameters)
-    n_p = compiled.defaults.shape[0]
-    needs_v = any(quantity.needs_v for quantity in replaced.values())
-    appended: list[int] = []
-    for name, size, needed in (("q", int(robot.nq), True), ("v", int(robot.nv), needs_v)):
-        if needed and name not in params:
-            params[name] = (n_p + sum(appended), (size, 1), False)
-            appended.append(size)
-    defaults = np.concatenate([compiled.defaults, np.full(sum(appended), np.nan)])
-    p = ca.SX.sym("p", defaults.shape[0])
-
-    def column(name: str) -> ca.SX:
-        offset, (rows, _), _ = params[name]
-        return p[offset:offset + rows]
-
-    entries = [p[i] for i in range(n_p)]
-    for name, quantity in replaced.items():
-        offset, shape, _ = params.pop(name)
-        build = quantity.symbolic
-        assert build is not None  # replaced holds the quantities with a symbolic form only
-        function = build()
-        inputs = [column("q"), column("v")] if quantity.needs_v else [column("q")]
-        value = function(*inputs)
-        if value.shape != shape:
-            raise ShapeError(f"the symbolic form of {name!r} gives shape {value.shape}, the "
-                             f"stack declares {shape}")
-        for c in range(shape[1]):
-            for r in range(shape[0]):
-                entries[offset + c * shape[0] + r] = value[r, c]
-    p_in = ca.vertcat(*entries)
-    blocks = []
-    for block in compiled.blocks:
-        fn = block.function
-        outputs = fn.call([p_in])
-        new = ca.Function(f"{fn.name()}_kin", [p], outputs, fn.name_in(), fn.name_out())
-        names = block.hard_names
-        if names is not None and names.bound_values is not None:  # a function of p too
-            bounds = names.bound_values
-            names = dataclasses.replace(names, bound_values=ca.Function(
-                f"{bounds.name()}_kin", [p], bounds.call([p_in])))
-        blocks.append(dataclasses.replace(block, function=new, hard_names=names))
-    residuals = compiled.residuals
-    if residuals is not None:
-        x = ca.SX.sym("x", compiled.n)
-        residuals = ca.Function("residuals_kin", [p, x], residuals.call([p_in, x]))
-    quantities = compiled.quantities - replaced.keys()
-    if appended:
-        quantities = quantities | {"q"} | ({"v"} if needs_v else set())
-    return dataclasses.replace(compiled, parameters=params, defaults=defaults,
-                               blocks=tuple(blocks), quantities=frozenset(quantities),
-                               residuals=residuals)

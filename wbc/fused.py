@@ -2,13 +2,16 @@
 
 For a stack on daqp whose cascade has no task-scaling LP (one or several least-squares levels,
 and the minimum-norm level), the compiled level functions ``p -> (H, g, A, lA, uA, lb, ub,
-E)`` (which hold the compiled kinematics, see :func:`wbc.controller.compiled_kinematics`) are
+E)`` (which hold the compiled kinematics, see :func:`wbc.passes.compiled_kinematics`) are
 chained with one CasADi ``daqp`` conic node per QP and the clipping of ``x`` into its bounds,
-into one CasADi function ``p -> x``. CasADi generates its C code; it is compiled against the
+into one CasADi function ``p -> x`` (the compile pass :func:`wbc.passes.fused_function`, with
+the constants this docstring explains). CasADi generates its C code; it is compiled against the
 daqp headers and static library that ship inside the casadi wheel (``casadi/include/daqp``,
-``casadi/libdaqpstat.a``), kept in the JIT cache (:mod:`wbc.jit`), and called every tick
+``casadi/libdaqpstat.a``), kept in the JIT cache (:mod:`wbc.cbuild`), and called every tick
 through :meth:`casadi.Function.buffer` on the workspace's own parameter vector: one C call per
-tick, no conversion, no allocation in Python.
+tick, no conversion, no allocation in Python. :class:`FusedWorkspace` is that call with its
+bookkeeping (:meth:`FusedWorkspace.solve`, or the callable :meth:`FusedWorkspace.solver` hands
+a caller that solves every tick, as :meth:`wbc.Controller.step` does).
 
 Cascades: the frozen rows
 -------------------------
@@ -182,263 +185,36 @@ Differences from the backend path
 from __future__ import annotations
 
 import math
-import os
-import shutil
 import time
-from pathlib import Path
+from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
 
-from .compiler import LEVEL, MIN_NORM, CompiledStack
+from .cbuild import DEFAULT_FLAGS, compiled_c, compiler_available
+from .compiler import CompiledStack
 from .errors import WbcError
-from .jit import DEFAULT_FLAGS, compiled_c
+from .passes import (
+    CASCADE_PRIMAL_TOL,
+    CERTIFICATE_TOL,
+    DAQP_PRIMAL_TOL,
+    DAQP_SETTINGS,
+    FROZEN_BAND,
+    FUSED_KINDS,
+    daqp_link_arguments,
+    fused_function,
+    fused_qps,
+    fused_settings,
+    initialise_success,
+    why_not_fused,
+)
 from .qp import QPResult, Status
 from .solution import LevelResult, Solution, TaskResiduals, Timings
-from .workspace import _ABS_RANK_TOL, Workspace
+from .workspace import Workspace
 
-#: Settings of the DAQP bundled with casadi (``DAQPSettings`` in ``casadi/include/daqp``).
-DAQP_SETTINGS = frozenset({"primal_tol", "dual_tol", "zero_tol", "pivot_tol", "progress_tol",
-                           "cycle_tol", "iter_limit", "fval_bound", "eps_prox", "eta_prox",
-                           "rho_soft", "rel_subopt", "abs_subopt"})
-
-
-#: DAQP's default ``primal_tol`` (``DEFAULT_PRIM_TOL`` in ``casadi/include/daqp/constants.h``).
-DAQP_PRIMAL_TOL = 1e-6
-#: Relative half-width of the band the frozen task rows of a fused cascade are kept in (see the
-#: module docstring).
-FROZEN_BAND = 1e-11
-#: The largest ``primal_tol`` of the generated daqp of a cascade (see the module docstring).
-CASCADE_PRIMAL_TOL = 1e-10
 #: After ``k`` consecutive failed fused calls, the next ``min(2^(k−1) − 1, MAX_SKIPPED_TICKS)``
 #: ticks take the ordinary path without trying (see the module docstring).
 MAX_SKIPPED_TICKS = 63
-#: The certificate of a cascade's levels (see the module docstring): relative distance to its
-#: side within which a bound or inequality with a multiplier counts as active, and relative
-#: violation of a side it accepts.
-CERTIFICATE_TOL = 1e-9
-#: The kinds of QP the fused tick solves (task-scaling LPs are not fused).
-FUSED_KINDS = frozenset({LEVEL, MIN_NORM})
-
-
-def daqp_link_arguments() -> tuple[str, ...]:
-    """Compiler arguments that build generated code calling daqp: the include folder and the
-    static library shipped in the casadi wheel. Raises :class:`~wbc.WbcError` if the wheel has
-    none (a casadi built without daqp)."""
-    root = Path(ca.__file__).parent
-    include, library = root / "include", root / "libdaqpstat.a"
-    if not (include / "daqp" / "api.h").exists() or not library.exists():
-        raise WbcError(f"casadi at {root} ships no daqp headers and static library "
-                       "(include/daqp, libdaqpstat.a)")
-    return (f"-I{include}", str(library), "-lm")
-
-
-_SETUP_FAILED = "if (flag<0) return 1;"
-
-
-def initialise_success(source: str) -> str:
-    """Correct CasADi's generated daqp code (casadi 3.6–3.8): when daqp's setup fails (e.g. a
-    Hessian that is not positive definite), ``casadi_daqp_solve`` returns before it writes the
-    QP's ``success`` flag, and the caller, which ignores that return value, reads the flag
-    uninitialised from the stack — a failed setup can then pass for a solved QP, with garbage
-    in ``x``. The patch writes ``success = 0`` on that path.
-
-    Raises:
-        RuntimeError: the generated code does not have the expected shape (another casadi).
-    """
-    if source.count(_SETUP_FAILED) != 1:
-        raise RuntimeError("the daqp code CasADi generates has changed (expected one "
-                           f"{_SETUP_FAILED!r}); the fused tick is not built")
-    return source.replace(_SETUP_FAILED, "if (flag<0) { d_qp->success = 0; return 1; }")
-
-
-def why_not_fused(compiled: CompiledStack, options: dict) -> str | None:
-    """Why ``compiled`` cannot take the fused path with daqp ``options``, or ``None`` if it
-    can (see the module docstring)."""
-    lps = [b.label for b in compiled.blocks if b.kind not in FUSED_KINDS]
-    if lps:
-        return (f"the cascade has task-scaling LPs ({', '.join(lps)}); only least-squares "
-                "levels and the min-norm level are fused")
-    unknown = sorted(set(options) - DAQP_SETTINGS)
-    if unknown:
-        return f"the daqp bundled with casadi has no setting {unknown}"
-    return None
-
-
-def fused_settings(compiled: CompiledStack, options: dict) -> dict:
-    """The daqp settings of the generated solver: ``options``, with ``primal_tol`` at most
-    :data:`CASCADE_PRIMAL_TOL` in a cascade (see the module docstring)."""
-    settings = dict(options)
-    if len(compiled.blocks) > 1:
-        settings["primal_tol"] = min(settings.get("primal_tol", DAQP_PRIMAL_TOL),
-                                     CASCADE_PRIMAL_TOL)
-    return settings
-
-
-def _frozen_rows(E: ca.MX, x: ca.MX, lb: ca.MX, ub: ca.MX, band: float, rank_tol: float):
-    """Rows ``(R, lower, upper)`` keeping ``E x`` where it is at ``x`` within a band: each row
-    without the variables this level fixes (``lb == ub``, as the ordinary path does), scaled to
-    unit norm, held in ``|r·y − r·x| <= band·(1 + |r·x|)``. A row whose norm is at most
-    ``max(1e-12, rank_tol·ρ)`` (``ρ`` the largest row norm, 1 if a variable is fixed: the
-    ordinary path's first pivot) is zero for the ordinary path's rank decision, and is made
-    zero here (inert) — scaled to unit norm, rounding noise (a Jacobian row of 1e-11) would be
-    frozen as a constraint the ordinary path does not have."""
-    fixed = lb == ub
-    free = ca.repmat((1 - fixed).T, E.shape[0], 1)
-    E = E * free
-    norms = ca.sqrt(ca.sum2(E * E))
-    floor = ca.fmax(_ABS_RANK_TOL, rank_tol * ca.fmax(ca.mmax(norms), ca.mmax(fixed)))
-    kept = norms > floor
-    E = E * ca.repmat(kept / ca.if_else(kept, norms, 1.0), 1, E.shape[1])
-    c = E @ x
-    half = band * (1 + ca.fabs(c))
-    return E, c - half, c + half
-
-
-def _cascade(compiled: CompiledStack, p: ca.MX, solve) -> tuple[ca.MX, list[dict]]:
-    """The fused cascade, symbolically: for every block its QP (``h, g, a, lba, uba, lbx,
-    ubx``, the frozen rows of the levels above appended), solved by ``solve(index, qp) -> (z,
-    cost, lam_a, lam_x)``, and the level's ``x`` (``z[:n]`` clipped into the bounds). Returns
-    the last ``x`` and, per block, a dict of the QP and its results."""
-    n = compiled.n
-    band = FROZEN_BAND
-    cost_rows: list[ca.MX] = []  # weighted task rows of the levels solved
-    soft: list[tuple[ca.MX, ca.MX, ca.MX]] = []  # their soft rows, shifted by the slacks
-    x = ca.MX.zeros(n)  # Stack.x_above() is 0 at the first level
-    levels = []
-    for i, block in enumerate(compiled.blocks):
-        p_in = p if compiled.x_above_offset is None else _substituted(
-            p, compiled.x_above_offset, x)
-        H, g, AT, lA, uA, lb, ub, ET = block.function(p_in)
-        n_z = block.n_z
-        # A variable its bounds fix (lb == ub: pinned by a zero mobility, whose metric M⁺ has a
-        # zero there) gets 1 on H's diagonal: constant on the feasible set, so the same
-        # optimum, and the Cholesky factorisation daqp's setup needs exists.
-        fixed = ca.vertcat(lb == ub, ca.DM.zeros(n_z - n))
-        H = H + ca.diag(fixed)
-        rows, lower, upper = [AT.T], [lA], [uA]
-        if block.n_frozen_soft:
-            C = ca.vertcat(*[s[0] for s in soft])
-            rows.append(ca.horzcat(C, ca.MX(C.shape[0], n_z - n)))
-            lower += [s[1] for s in soft]
-            upper += [s[2] for s in soft]
-        if block.n_frozen_cost:
-            R, low, up = _frozen_rows(ca.vertcat(*cost_rows), x, lb, ub, band,
-                                       compiled.rank_tol)
-            rows.append(ca.horzcat(R, ca.MX(R.shape[0], n_z - n)))
-            lower.append(low)
-            upper.append(up)
-        free = ca.DM.inf(n_z - n)  # slack columns of soft rows are free
-        qp = {"h": H, "g": g, "a": ca.vertcat(*rows), "lba": ca.vertcat(*lower),
-              "uba": ca.vertcat(*upper), "lbx": ca.vertcat(lb, -free),
-              "ubx": ca.vertcat(ub, free)}
-        z, cost, lam_a, lam_x = solve(i, qp)
-        x = ca.fmin(ca.fmax(z[:n], lb), ub)
-        if block.m_cost:
-            cost_rows.append(ET.T)
-        if block.m_soft:
-            own = slice(block.m_hard, block.m_hard + block.m_soft)
-            slack = z[n:]
-            soft.append((AT.T[own, :n], lA[own] + slack, uA[own] + slack))
-        levels.append({"qp": qp, "x": x, "z": z, "cost": cost, "lam_a": lam_a,
-                       "lam_x": lam_x})
-    return x, levels
-
-
-def _certified(compiled: CompiledStack, levels: list[dict]) -> ca.MX:
-    """1 if every level below the first passes the certificate of the module docstring (the
-    generated daqp's ``z`` and multipliers meet the KKT conditions of the exact level problem,
-    frozen task rows as equalities, to :data:`CERTIFICATE_TOL`; stationarity holds by daqp's
-    construction and is not evaluated), else 0."""
-    ok = []
-    for block, level in zip(compiled.blocks[1:], levels[1:], strict=True):
-        qp, z, lam_a, lam_x = level["qp"], level["z"], level["lam_a"], level["lam_x"]
-        A = qp["a"]
-        # primal feasibility and complementarity, bounds then rows; a pinned variable's bounds
-        # are one equality (both sides met: either sign); the frozen task rows are equalities
-        # of the exact problem (either sign), held in their band: feasibility only
-        for value, lower, upper, lam, signed in (
-                (z, qp["lbx"], qp["ubx"], lam_x, z.shape[0]),
-                (A @ z, qp["lba"], qp["uba"], lam_a, block.m_top + block.n_frozen_soft)):
-            if value.shape[0] == 0:
-                continue
-            tol_l = CERTIFICATE_TOL * (1 + ca.fabs(lower))
-            tol_u = CERTIFICATE_TOL * (1 + ca.fabs(upper))
-            ok.append(ca.sum1((value < lower - tol_l) + (value > upper + tol_u)) == 0)
-            if signed:  # (written so that a multiplier of an infinite side counts as off)
-                v, lam = value[:signed], lam[:signed]
-                at_upper = v >= upper[:signed] - tol_u[:signed]
-                at_lower = v <= lower[:signed] + tol_l[:signed]
-                off = (lam > 0) * (1 - at_upper) + (lam < 0) * (1 - at_lower)
-                ok.append(ca.sum1(off) == 0)
-    return ca.sum1(ca.vertcat(*ok)) == len(ok) if ok else ca.MX(1)
-
-
-def _substituted(p: ca.MX, offset: int, value: ca.MX) -> ca.MX:
-    """``p`` with ``p[offset:offset + len(value)]`` replaced by ``value`` (an empty slice of an
-    MX column is 1×0, which vertcat refuses: those are left out)."""
-    end = offset + value.shape[0]
-    return ca.vertcat(*([p[:offset]] if offset else []), value,
-                      *([p[end:]] if end < p.shape[0] else []))
-
-
-def fused_function(compiled: CompiledStack, options: dict) -> ca.Function:
-    """The CasADi function ``p -> (x, done, [x_i,] z_i, y_i, z_bounds_i for each QP i)`` of a
-    cascade of least-squares levels (and the min-norm level): every level's function, daqp
-    (CasADi's conic node with ``options``) on its QP with the frozen rows of the levels above
-    (see the module docstring), and ``x`` clipped into ``[lb, ub]``. ``done`` is the sum of the
-    costs; unwritten, as every later output, if a daqp call fails or sides cross. Per QP ``i``:
-    ``x_i`` (every QP but the last, whose ``x_i`` is ``x``), its solution ``z_i`` (slacks
-    included) and its multipliers (rows, bounds; the sign convention of :mod:`wbc.qp`).
-    Evaluates on CasADi's virtual machine as it is; :func:`compiled_c` makes it C.
-
-    Raises:
-        WbcError: the stack has a task-scaling LP, or an option is not a daqp setting.
-    """
-    reason = why_not_fused(compiled, options)
-    if reason:
-        raise WbcError(f"cannot fuse: {reason}")
-
-    def solve(i: int, qp: dict):
-        n_z, m = qp["h"].shape[0], qp["a"].shape[0]
-        solver = ca.conic(f"daqp_{i}", "daqp", {"h": ca.Sparsity.dense(n_z, n_z),
-                                                "a": ca.Sparsity.dense(m, n_z)},
-                          {"daqp": dict(options), "error_on_fail": True})
-        # The daqp bundled with casadi does not check lower <= upper: when sides cross, it is
-        # given H = −I instead, which its setup refuses (not convex), so that the call fails as
-        # a whole and writes no output (the previous command stays for the "last" fallback).
-        crossed = ca.sum1(qp["lbx"] > qp["ubx"]) + ca.sum1(qp["lba"] > qp["uba"])
-        result = solver(**{**qp, "h": ca.if_else(crossed == 0, qp["h"], -ca.MX.eye(n_z))})
-        return result["x"], result["cost"], result["lam_a"], result["lam_x"]
-
-    p = ca.MX.sym("p", compiled.defaults.shape[0])
-    x, levels = _cascade(compiled, p, solve)
-    done = sum(level["cost"] for level in levels)
-    if len(levels) > 1:
-        # A cascade's answer is kept when the certificate of the module docstring holds (the
-        # exact lexicographic optimum, to tolerance); else "done" stays NaN, as after a failed
-        # solve, and the ordinary path answers the tick.
-        done = ca.if_else(_certified(compiled, levels), done, math.nan)
-    outputs, names = [x, done], ["x", "done"]
-    for i, level in enumerate(levels):
-        if i < len(levels) - 1:
-            outputs.append(level["x"])
-            names.append(f"x_{i}")
-        outputs += [level["z"], level["lam_a"], level["lam_x"]]
-        names += [f"z_{i}", f"y_{i}", f"z_bounds_{i}"]
-    # "done" is written after every solve succeeded only: see FusedWorkspace.solve
-    return ca.Function("fused_tick", [p], outputs, ["p"], names)
-
-
-def fused_qps(compiled: CompiledStack) -> ca.Function:
-    """For diagnostics (:meth:`FusedWorkspace.last_qps`): ``(p, z_0, z_1, ...) -> (H, g, A,
-    lA, uA, lb, ub)`` of every QP of the fused cascade, each solved by the given ``z_i``."""
-    p = ca.MX.sym("p", compiled.defaults.shape[0])
-    zs = [ca.MX.sym(f"z_{i}", b.n_z) for i, b in enumerate(compiled.blocks)]
-    _, levels = _cascade(compiled, p, lambda i, qp: (zs[i], None, None, None))
-    return ca.Function("fused_qps", [p, *zs],
-                       [level["qp"][key] for level in levels
-                        for key in ("h", "g", "a", "lba", "uba", "lbx", "ubx")])
 
 
 class FusedWorkspace(Workspace):
@@ -458,8 +234,9 @@ class FusedWorkspace(Workspace):
     Raises:
         WbcError: not fusable; ``RuntimeError`` if the C compiler fails.
 
-    The :class:`~wbc.Solution` a fused tick returns is one object reused every tick, and its
-    arrays buffers the next tick overwrites: copy what you keep.
+    The :class:`~wbc.Solution` a fused tick returns is one object reused every tick
+    (:attr:`fused_solution`), and its arrays buffers the next tick overwrites: copy what you
+    keep.
 
     Attributes:
         function: the fused CasADi function (compiled C, or the virtual machine's).
@@ -483,8 +260,6 @@ class FusedWorkspace(Workspace):
         self.function = function
         self.fallback_solves = 0  # ticks the generated daqp did not solve
         self.skipped_solves = 0  # ticks the ordinary path took without trying the fused call
-        self._failures = 0  # consecutive failed fused calls
-        self._skip = 0  # ticks left before the fused call is tried again
         self._qps: ca.Function | None = None  # fused_qps, made when last_qps first asks
         self._buffer, self._evaluate = function.buffer()
         self.bare_call = self._evaluate  # the generated function alone, for benchmarks
@@ -520,51 +295,76 @@ class FusedWorkspace(Workspace):
             compiled.variables, {}, self._timings,
             task_residuals=None if compiled.residuals is None
             else TaskResiduals(compiled, self.p, self._x))
-        self._no_qps: list = []
+        self._no_qps: list = []  # self._solved after a fused tick: no backend solved a QP
+        self._solve = self._solve_function()
 
     def solve(self) -> Solution:
-        """One call of the fused function; the ordinary path when it reports a failure."""
-        if self._unset:
-            raise WbcError(f"parameters never set: {sorted(self._unset)}")
-        if self._skip:  # the fused call failed on the last ticks (see the module docstring)
-            self._skip -= 1
-            self.skipped_solves += 1
-            return super().solve()
-        done = self._done
-        done[0] = math.nan  # type: ignore[call-overload]  # a view of float64: takes floats
-        t0 = time.perf_counter()
-        try:
-            self._evaluate()
-        except RuntimeError:  # CasADi's virtual machine raises where the C code returns 1
-            pass
-        t1 = time.perf_counter()
-        cost = done[0]
-        if cost == cost:  # not NaN: the solve succeeded
-            self._timings.solve = t1 - t0
-            self.fused_tick_solved()
-            return self._solution
-        return self.solve_after_failed_call()
+        """One call of the fused function; the ordinary path when it reports a failure, or
+        after consecutive failures (see the module docstring). The same as calling
+        :meth:`solver`'s callable."""
+        return self._solve(None)
 
-    def call_buffers(self) -> tuple:
-        """``(call, done, solution, timings)`` for a caller that makes the fused call itself
-        (:class:`~wbc.Controller`'s tick): the bare call, the one-entry view it writes the
-        cost into (set it to NaN before the call: still NaN after means a failed call), the
-        reused :class:`~wbc.Solution` and its timings. After a solved call, the caller reports
-        :meth:`fused_tick_solved`, after a failed one it takes :meth:`solve_after_failed_call`."""
-        return self._evaluate, self._done, self._solution, self._timings
+    def solver(self) -> Callable[[float | None], Solution]:
+        """:meth:`solve` as a callable bound to this workspace, for a caller that solves every
+        tick (:meth:`wbc.Controller.step` takes it once): a closure over the buffers, without
+        the method around it. ``solver()(started)`` returns :attr:`fused_solution` when the
+        fused call answered, else the ordinary path's new :class:`~wbc.Solution`; ``started``,
+        a :func:`time.perf_counter` reading taken when the caller's tick began (or ``None``),
+        makes ``timings.model`` the time from it to the solve (the caller's model stage)."""
+        return self._solve
 
-    def fused_tick_solved(self) -> None:
-        """Bookkeeping of a solved fused call (its results are in the solution's buffers)."""
-        self._solved = self._no_qps
-        self._failures = 0
+    @property
+    def fused_solution(self) -> Solution:
+        """The :class:`~wbc.Solution` a fused call answers with: one object for the workspace's
+        life, whose arrays every answered tick rewrites (copy what you keep)."""
+        return self._solution
 
-    def solve_after_failed_call(self) -> Solution:
-        """The tick on the ordinary path after a failed fused call, counted, with the back-off
-        of the module docstring."""
-        self.fallback_solves += 1
-        self._failures += 1
-        self._skip = min(2 ** (self._failures - 1) - 1, MAX_SKIPPED_TICKS)
-        return super().solve()
+    def _solve_function(self) -> Callable[[float | None], Solution]:
+        """The fused tick as a closure over the workspace's buffers, see :meth:`solver`. It
+        keeps the back-off's counters (module docstring) in its own cells: the hot path reads
+        no attribute (built once; ≈ 1 % of a Panda tick against attribute reads)."""
+        workspace, unset, call, done = self, self._unset, self._evaluate, self._done
+        solution, timings, no_qps = self._solution, self._timings, self._no_qps
+        ordinary, clock, nan = super().solve, time.perf_counter, math.nan
+        failures = 0  # consecutive failed fused calls
+        skip = 0  # ticks left that take the ordinary path without trying the fused call
+        fused_last = False  # the last tick was the fused call's (self._solved is no_qps)
+
+        def solve(started: float | None) -> Solution:
+            nonlocal failures, skip, fused_last
+            if unset:
+                raise WbcError(f"parameters never set: {sorted(unset)}")
+            if skip:  # the fused call failed on the last ticks
+                skip -= 1
+                workspace.skipped_solves += 1
+                t0 = clock()
+            else:
+                done[0] = nan  # type: ignore[call-overload]  # NaN unless answered (__init__)
+                t0 = clock()
+                try:
+                    call()
+                except RuntimeError:  # CasADi's virtual machine raises where C returns 1
+                    pass
+                t1 = clock()
+                if done[0] == done[0]:  # not NaN: every level solved (and certified)
+                    timings.solve = t1 - t0
+                    if started is not None:
+                        timings.model = t0 - started
+                    if not fused_last:
+                        workspace._solved = no_qps  # (what last_qps, variable_bounds read)
+                        failures, fused_last = 0, True
+                    return solution
+                workspace.fallback_solves += 1
+                failures += 1
+                skip = min(2 ** (failures - 1) - 1, MAX_SKIPPED_TICKS)
+            # the ordinary path (the model stage ended at t0: before the failed call, if any)
+            fused_last = False
+            answer = ordinary()
+            if started is not None:
+                answer.timings.model = t0 - started
+            return answer
+
+        return solve
 
     def variable_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """As :meth:`Workspace.variable_bounds`; after a fused tick they are evaluated again
@@ -594,11 +394,7 @@ class FusedWorkspace(Workspace):
         return qps
 
 
-def compiler_available() -> bool:
-    """Whether the C compiler of :mod:`wbc.jit` (``$CC``, default ``cc``) is on the path."""
-    return shutil.which(os.environ.get("CC", "cc")) is not None
-
-
+# (the fused pass's names, defined in wbc.passes, stay importable from here)
 __all__ = ["CASCADE_PRIMAL_TOL", "CERTIFICATE_TOL", "DAQP_PRIMAL_TOL", "DAQP_SETTINGS",
            "FROZEN_BAND", "FUSED_KINDS", "MAX_SKIPPED_TICKS", "FusedWorkspace",
            "compiler_available", "daqp_link_arguments", "fused_function", "fused_qps",

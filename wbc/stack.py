@@ -400,7 +400,7 @@ class Stack:
                 machine (needs a C compiler; each function is built once per machine and
                 cached on disk, see :mod:`wbc.jit`).
         """
-        from .jit import jit_compiled
+        from .passes import jit_compiled
         from .workspace import Workspace
 
         compiled = jit_compiled(self.compile()) if jit else self.compile()

@@ -1,0 +1,616 @@
+"""``wbc fuzz``: a seeded fuzz campaign over stacks, workspaces and robot controllers.
+
+Every case is one tick (``Workspace.solve`` or ``Controller.step``) on data with an injected
+defect, or on clean random data. Its outcome is classed as
+
+* ``"error"``: a clean :class:`~wbc.WbcError` (the input was refused, with a message);
+* ``"failure"``: a solution with a failure status (infeasible, max-iter, numerical);
+* ``"success"``: a solved tick;
+
+and it is a **defect** when it raises anything else, returns NaN / inf in ``x`` (any status),
+leaves a hard variable bound by more than ``1e-9 · max(1, |bound|)`` on success, or takes more
+than 1 s (a hang).
+
+Case families (drawn in proportion, all seeded from ``--seed``):
+
+* ``stack``: random stacks of 1–4 priority levels over 1–12 variables (one or two blocks),
+  built once per *structure* and then updated tick after tick through the workspace. Tasks
+  are :class:`~wbc.tasks.LinearTask` (random, rank-deficient, empty-in-effect (zero rows of
+  ``A``), zero weight), hard constraints :class:`~wbc.tasks.Bounds` and
+  :class:`~wbc.tasks.LinearConstraint` (duplicated rows, contradictory rows, infeasible
+  sides). Each tick's data are scaled by ``10^U(-12, 12)`` and receive one injected defect
+  (or none): NaN / ±inf in a coefficient or a target, a wrong shape, a lower side above its
+  upper side, an unknown parameter name.
+* ``robot``: for each catalogue robot a velocity-level controller (frame task, posture task,
+  configuration and velocity limits) — on daqp it takes the fused tick (:mod:`wbc.fused`)
+  when a C compiler is there, so the fused path is fuzzed as ``"daqp (fused)"`` — ticked on
+  bad states and references: NaN in ``q``, ``q`` outside the limits, wrong lengths, unknown
+  reference names, non-orthonormal target rotations, unreachable targets, NaN targets.
+* ``constructors``: one call of a public constructor or stack method (``wbc.Variables``,
+  ``Stack.parameter`` / ``add`` / ``constrain`` / ``set_mobility``, every task of
+  ``wbc.tasks`` — built, put in a fitting stack and compiled —, the robots' loaders
+  ``load`` / ``make_base`` / ``from_urdf`` / ``arm_from_urdf`` / ``arm_from_model``, and a
+  controller's ``set_references``) with valid arguments and then one or two of them replaced by
+  a bad value: NaN, ±inf, a wrong shape, an empty array, a ``str``, ``None``, a ``dict``, a
+  complex number, a negative number, a ``bool``, a CasADi symbol, a ragged list, an ``int``
+  beyond float's range, zero. Rule: a call that returns is a ``"success"`` (some of these values
+  are legal: ``name=None``, ``weight=0``), a :class:`~wbc.WbcError` an ``"error"``, and *any
+  other exception is a defect* — the calls pass their arguments by keyword, in the right
+  number, so not even a ``TypeError`` is excused. Its outcomes are the row ``"constructors"``.
+
+Outputs (``--out DIR``): ``DIR/fuzz.json`` with ``"cases"``, ``"outcomes"`` (counts per class
+and backend), ``"defects"`` (each with a reproducer: family, backend, seeds, injected defect,
+message) and ``"parameters"``; ``DIR/fuzz.md`` the same as a table. Exit code: 0 without
+defects, 1 with any (2: a usage error).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+import warnings
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+import wbc
+import wbc.robots
+import wbc.tasks as tasks
+from wbc.fused import FusedWorkspace
+from wbc.robots import arms
+from wbc.solvers import available_backends
+from wbc.solvers.base import silenced
+from wbc.tasks import (
+    Bounds,
+    ConfigurationLimit,
+    FrameTask,
+    LinearConstraint,
+    LinearTask,
+    PostureTask,
+    VelocityLimit,
+)
+from wbc.tasks.manipulability import ManipulabilityTask
+
+from ..arguments import constructible_backends
+
+HANG_S = 1.0  # a tick longer than this is a hang [s]
+CONSTRUCTOR_MIN = 40  # constructor calls per campaign at least (about one per constructor)
+BOUND_TOL = 1e-9  # allowed excursion out of a hard variable bound, relative to max(1, |b|)
+TICKS = 8  # ticks per structure and draw of a stack case family (each tick is a case)
+DEFECTS = ("none", "none", "nan", "inf", "shape", "crossed", "unknown", "zero_weight", "huge")
+STATE_DEFECTS = ("none", "nan_q", "outside_limits", "short_q", "long_v", "unknown_reference",
+                 "skewed_rotation", "unreachable", "nan_target", "inf_v")
+
+
+def classify(tick) -> tuple[str, str | None, str]:
+    """Run ``tick()`` (returning a :class:`~wbc.Solution` and the hard variable bounds) and class
+    it: ``(class, defect or None, message)``."""
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            solution, (lower, upper) = tick()
+            # a failed tick's conflict search runs when its message is first read
+            # (wbc.infeasibility): read it here, so that the campaign covers it too
+            solution.message  # noqa: B018
+    except wbc.WbcError as exc:
+        outcome, defect, message = "error", None, f"{type(exc).__name__}: {exc}"
+    except Exception as exc:  # what the campaign looks for
+        return "defect", "exception", f"{type(exc).__name__}: {exc}"
+    else:
+        x = np.asarray(solution.x, dtype=float)
+        outcome = "success" if solution.status is wbc.Status.SOLVED else "failure"
+        defect, message = None, f"{solution.status.value}"
+        if not np.all(np.isfinite(x)):
+            defect, message = "non_finite_x", f"x = {x.tolist()}"
+        elif outcome == "success":
+            slack = BOUND_TOL * np.maximum(1.0, np.maximum(np.abs(np.where(
+                np.isfinite(lower), lower, 0)), np.abs(np.where(np.isfinite(upper), upper, 0))))
+            out = np.maximum(lower - x, x - upper) - slack
+            if np.any(out > 0):
+                defect, message = "out_of_bounds", f"bound excursion {float(out.max()):.3g}"
+    elapsed = time.perf_counter() - start
+    if elapsed > HANG_S:
+        return "defect", "hang", f"tick took {elapsed:.2f} s; {message}"
+    return ("defect" if defect else outcome), defect, message
+
+
+# ---------------------------------------------------------------------------------------------
+# stack family
+
+
+def random_structure(rng: np.random.Generator) -> dict:
+    """A stack structure: sizes of the blocks, the tasks per level, the hard constraints."""
+    n = int(rng.integers(1, 13))
+    split = int(rng.integers(0, n)) if n > 1 and rng.random() < 0.5 else 0
+    levels = int(rng.integers(1, 5))
+    # 0 rows: an empty task (one in thirteen)
+    tasks = [(level, int(rng.integers(0, 13))) for level in range(levels)
+             for _ in range(int(rng.integers(1, 3)))]
+    return {"n": n, "split": split, "tasks": tasks, "bounds": bool(rng.random() < 0.8),
+            "rows": int(rng.integers(0, 5)), "damping": float(rng.choice([0.0, 1e-6, 1e-3]))}
+
+
+def build_stack(structure: dict):
+    """The :class:`wbc.Stack` of a structure (its data are replaced every tick)."""
+    n, split = structure["n"], structure["split"]
+    x = wbc.Variables(a=split, b=n - split) if split else wbc.Variables(x=n)
+    stack = wbc.Stack(x, damping=structure["damping"])
+    for i, (level, rows) in enumerate(structure["tasks"]):
+        stack.add(LinearTask(np.zeros((rows, n)), np.zeros(rows), name=f"t{i}"), priority=level)
+    if structure["bounds"]:
+        stack.constrain(Bounds(-np.ones(n), np.ones(n), name="box"))
+    if structure["rows"]:
+        m = structure["rows"]
+        stack.constrain(LinearConstraint(np.zeros((m, n)), -np.ones(m), np.ones(m), name="rows"))
+    return stack
+
+
+def random_values(rng: np.random.Generator, structure: dict, defect: str) -> dict:
+    """One tick's parameter values for a structure, with ``defect`` injected."""
+    n = structure["n"]
+    scale = 10.0 ** rng.uniform(-12, 12) if defect == "huge" else 10.0 ** rng.uniform(-3, 3)
+    values = {}
+    for i, (_, rows) in enumerate(structure["tasks"]):
+        A = rng.standard_normal((rows, n)) * scale
+        if rng.random() < 0.3:  # rank-deficient: a few random directions, or none at all
+            A = A[:, :1] @ rng.standard_normal((1, n)) if rng.random() < 0.7 else 0 * A
+        values[f"t{i}.A"], values[f"t{i}.b"] = A, rng.standard_normal(rows) * scale
+    if structure["bounds"]:
+        centre, width = rng.standard_normal(n), rng.uniform(0.0, 2.0, n)
+        width[rng.random(n) < 0.1] = 0.0  # equal sides: a fixed variable
+        values["box.lower"], values["box.upper"] = centre - width, centre + width
+        infinite = rng.random(n) < 0.2
+        values["box.lower"][infinite], values["box.upper"][infinite] = -np.inf, np.inf
+    if structure["rows"]:
+        m = structure["rows"]
+        C = rng.standard_normal((m, n))
+        lower = rng.standard_normal(m) - rng.uniform(0, 2, m)
+        upper = lower + rng.uniform(0, 3, m)
+        if m > 1 and rng.random() < 0.4:  # duplicated (and possibly contradictory) rows
+            C[1] = C[0] * rng.choice([1.0, -1.0, 2.0])
+            lower[1], upper[1] = (lower[0], upper[0]) if rng.random() < 0.5 else (5.0, 6.0)
+        if rng.random() < 0.1:  # infeasible: an empty interval far away
+            lower[0], upper[0] = 1e3, 1e3
+        values["rows.C"], values["rows.lower"], values["rows.upper"] = C, lower, upper
+    inject(rng, values, defect)
+    return values
+
+
+def inject(rng: np.random.Generator, values: dict, defect: str) -> None:
+    """Put ``defect`` into ``values`` (in place)."""
+    name = list(values)[int(rng.integers(len(values)))]
+    if defect in ("nan", "inf") and values[name].size:
+        bad = np.nan if defect == "nan" else rng.choice([np.inf, -np.inf])
+        values[name] = values[name].astype(float).copy()
+        values[name].flat[int(rng.integers(values[name].size))] = bad
+    elif defect == "shape":
+        values[name] = np.zeros(np.add(values[name].shape, 1))
+    elif defect == "crossed" and "box.lower" in values:
+        values["box.lower"], values["box.upper"] = values["box.upper"] + 1.0, values["box.lower"]
+    elif defect == "unknown":
+        values["nonexistent.A"] = np.zeros(1)
+    elif defect == "zero_weight":
+        for key in values:
+            if key.endswith(".A"):
+                values[key] = 0.0 * values[key]
+
+
+def stack_cases(backend: str, seed: int, structures: int, draws: int, fused: bool = False):
+    """Yield ``(case, class, defect, message)`` of the stack family on one backend; with
+    ``fused`` (daqp only) each stack runs on a :class:`~wbc.fused.FusedWorkspace` — the fused
+    cascade on CasADi's virtual machine (the same function the C build compiles, without a
+    compilation per random stack) — labelled ``"daqp (fused)"``."""
+    label = f"{backend} (fused)" if fused else backend
+    for s in range(structures):
+        rng = np.random.default_rng([seed, s])
+        structure = random_structure(rng)
+        stack = build_stack(structure)
+        ws = (FusedWorkspace(stack.compile(), compile=False) if fused
+              else stack.workspace(backend))
+        for d in range(draws * TICKS):
+            defect = str(rng.choice(DEFECTS))
+            values = random_values(rng, structure, defect)
+
+            def tick(values=values, ws=ws):
+                ws.set(**values)
+                # CasADi's virtual machine prints a failed daqp node's inputs through Python
+                with silenced():
+                    return ws.solve(), ws.variable_bounds()
+
+            case = {"family": "stack", "backend": label, "seed": seed, "structure": s,
+                    "tick": d, "injected": defect, "structure_spec": structure}
+            yield (case, *classify(tick))
+
+
+# ---------------------------------------------------------------------------------------------
+# robot family
+
+
+def robot_controller(robot, backend: str, dt: float = 0.01, fused: bool | str = "auto"):
+    """The velocity-level controller fuzzed on every robot (frame, posture, both limits)."""
+    stack = wbc.Stack(wbc.Variables(v=robot.nv), damping=1e-3)
+    stack.add(FrameTask(robot, "ee", gain=0.5, name="ee"))
+    stack.add(PostureTask(robot, gain=0.5, weight=1e-2, name="posture"))
+    stack.constrain(ConfigurationLimit(robot, name="q_limits"))
+    stack.constrain(VelocityLimit(robot, name="v_limits"))
+    return wbc.Controller(robot, stack, dt=dt, backend=backend, fused=fused)
+
+
+def random_state(rng, robot, defect: str):
+    """``(q, v, references)`` with ``defect`` injected."""
+    lo, up = robot.limits.q_lower, robot.limits.q_upper
+    q = robot.neutral().copy()
+    arm = np.isfinite(lo) & np.isfinite(up)
+    q[arm] = rng.uniform(lo[arm], up[arm])
+    v = rng.uniform(robot.limits.v_lower, robot.limits.v_upper) * 0.5
+    target = robot.frame_pose(q, "ee").copy()
+    target[:3, 3] += rng.uniform(-0.3, 0.3, 3)
+    refs = {"ee": target}
+    if defect == "nan_q":
+        q[int(rng.integers(len(q)))] = np.nan
+    elif defect == "outside_limits" and arm.any():
+        j = int(rng.choice(np.flatnonzero(arm)))
+        q[j] = (up[j] if rng.random() < 0.5 else lo[j]) + rng.choice([-1, 1]) * rng.uniform(0.01, 2)
+    elif defect == "short_q":
+        q = q[:-1]
+    elif defect == "long_v":
+        v = np.append(v, 0.0)
+    elif defect == "unknown_reference":
+        refs["elbow_typo"] = target
+    elif defect == "skewed_rotation":
+        target[:3, :3] = target[:3, :3] @ (np.eye(3) + rng.uniform(-0.3, 0.3, (3, 3)))
+    elif defect == "unreachable":
+        target[:3, 3] += rng.choice([-1, 1], 3) * 50.0
+    elif defect == "nan_target":
+        target[int(rng.integers(3)), 3] = np.nan
+    elif defect == "inf_v":
+        v[int(rng.integers(len(v)))] = np.inf
+    return q, v, refs
+
+
+def robot_cases(backend: str, seed: int, ticks: int):
+    """Yield ``(case, class, defect, message)`` of the robot family on one backend (the
+    label is ``"daqp (fused)"`` when the controller takes the fused tick)."""
+    for r, name in enumerate(wbc.robots.names()):
+        robot = wbc.robots.load(name)
+        ctrl = robot_controller(robot, backend)
+        label = f"{backend} (fused)" if getattr(ctrl, "fused", False) else backend
+        rng = np.random.default_rng([seed, 1000 + r])
+        for k in range(ticks):
+            defect = str(rng.choice(STATE_DEFECTS))
+            q, v, refs = random_state(rng, robot, defect)
+
+            def tick(q=q, v=v, refs=refs, ctrl=ctrl):
+                command = ctrl.step(q, v, **refs)
+                solution = ctrl.last_solution
+                return _Commanded(command, solution), ctrl.workspace.variable_bounds()
+
+            case = {"family": "robot", "backend": label, "seed": seed, "robot": name,
+                    "tick": k, "injected": defect}
+            yield (case, *classify(tick))
+
+
+class _Commanded:
+    """What a controller tick is judged by: the command it returns (``x``), and its solution's
+    status and message."""
+
+    def __init__(self, x, solution):
+        self.x, self.status, self.message = x, solution.status, solution.message
+
+
+# ---------------------------------------------------------------------------------------------
+# constructor family
+
+BAD_VALUES = ("nan", "inf", "shape", "empty", "str", "none", "dict", "complex", "negative",
+              "bool", "symbol", "ragged", "huge", "zero")
+
+
+def bad_value(rng: np.random.Generator, good, kind: str):
+    """A bad value of ``kind`` (:data:`BAD_VALUES`) in place of the valid argument ``good``."""
+    arr = None
+    if not isinstance(good, (bool, str)):
+        try:
+            arr = np.asarray(good, dtype=float)
+        except (TypeError, ValueError):
+            arr = None
+    if kind in ("nan", "inf"):
+        bad = np.nan if kind == "nan" else float(rng.choice([np.inf, -np.inf]))
+        if arr is None or arr.ndim == 0 or not arr.size:
+            return bad
+        arr = arr.copy()
+        arr.flat[int(rng.integers(arr.size))] = bad
+        return arr
+    if kind == "shape":
+        if arr is None or arr.ndim == 0 or rng.random() < 0.3:
+            return np.ones((int(rng.integers(1, 5)),) * int(rng.integers(1, 4)))
+        return np.ones(tuple(d + int(rng.integers(1, 3)) for d in arr.shape))
+    if kind == "empty":
+        return np.zeros((0,) * int(rng.integers(1, 3)))
+    if kind == "complex":
+        return (1.0 if arr is None else arr) * (1 + 1j)
+    if kind == "negative":
+        return -1.0 if arr is None else -np.abs(arr) - 1.0
+    if kind == "symbol":
+        return ca.SX.sym("s", int(rng.integers(1, 4)))
+    return {"str": "abc", "none": None, "dict": {"a": 1.0}, "bool": True,
+            "ragged": [[1.0, 2.0], [3.0]], "huge": 10 ** 400, "zero": 0}[kind]
+
+
+def _in_stack(build, variables, hard: bool = False):
+    """A call that builds a task, adds (or constrains) it in a stack over ``variables`` and
+    compiles the stack."""
+    def call(**kwargs):
+        stack = wbc.Stack(variables(), damping=1e-3)
+        task = build(**kwargs)
+        (stack.constrain if hard else stack.add)(task)
+        stack.compile()
+    return call
+
+
+def constructor_specs() -> dict:
+    """``name -> (call, valid_kwargs(rng))`` of every constructor the family fuzzes."""
+    robot = wbc.robots.load("omni4_arm6")
+    nv, n = robot.nv, 4
+    ur5 = wbc.robots.urdf_path("ur_description/urdf/ur5_robot.urdf")
+    ur5_model = arms.load_urdf_model(str(ur5))
+    ctrl = robot_controller(robot, "daqp", fused=False)
+    target = robot.frame_pose(robot.neutral(), "ee").copy()
+
+    def on(n_x=n):
+        return lambda: wbc.Variables(x=n_x)
+
+    def velocities():
+        return wbc.Variables(v=nv)
+
+    def stack_method(method):
+        def call(**kwargs):
+            stack = wbc.Stack(3)
+            getattr(stack, method)(**kwargs)
+            if method in ("add", "constrain"):
+                stack.compile()
+        return call
+
+    def wheel_jacobian(rng):
+        return rng.standard_normal((4, 3))
+
+    field = {"l0": 0.333, "l1": 0.328, "l2": 0.394, "b_d": 0.27, "k_f": 2.0, "k_r": 2.0,
+             "k_omega": 1.0, "delta_f": 0.15, "delta_r": 0.15, "phi_min": 0.5, "phi_max": 0.8,
+             "phi_t": 0.5, "epsilon": 0.05, "v_max": 1.0, "omega_max": 1.0, "alpha": 0.25,
+             "dv_max": 1.0, "domega_max": 1.0}
+
+    def rate_limit_level(**kwargs):
+        stack = wbc.Stack(wbc.Variables(u=2))
+        tasks.VelocityField().rate_limit_level(stack, **kwargs)
+        stack.compile()
+
+    def share(**kwargs):
+        stack = wbc.Stack(wbc.Variables(base=3, arm=2))
+        stack.add(tasks.LinearTask(np.eye(5), np.ones(5), name="t"))
+        tasks.share_task(stack, **kwargs)
+        stack.compile()
+
+    return {
+        "Variables": (lambda **kw: wbc.Variables(**kw), lambda rng: {"blocks": {"a": 2, "b": 3}}),
+        "Stack.parameter": (stack_method("parameter"), lambda rng: {
+            "name": "p", "shape": (2, 3), "default": rng.standard_normal((2, 3)),
+            "allow_inf": False}),
+        "Stack.add": (stack_method("add"), lambda rng: {
+            "task": tasks.LinearTask(np.eye(3), rng.standard_normal(3), name="t"),
+            "priority": 0, "weight": 1.0, "scaling": False}),
+        "Stack.constrain": (stack_method("constrain"), lambda rng: {
+            "task": tasks.Bounds(-1.0, 1.0, name="b"), "levels": None}),
+        "Stack.set_mobility": (stack_method("set_mobility"), lambda rng: {
+            "mobility": rng.uniform(0.1, 1.0, 3), "levels": None}),
+        "LinearTask": (_in_stack(tasks.LinearTask, on()), lambda rng: {
+            "A": rng.standard_normal((3, n)), "b": rng.standard_normal(3),
+            "weight": 1.0, "name": "t", "block": None}),
+        "LinearConstraint": (_in_stack(tasks.LinearConstraint, on(), hard=True), lambda rng: {
+            "C": rng.standard_normal((2, n)), "lower": -np.ones(2), "upper": np.ones(2),
+            "name": "c", "block": None}),
+        "Bounds": (_in_stack(tasks.Bounds, on(), hard=True), lambda rng: {
+            "lower": -np.ones(n), "upper": np.ones(n), "name": "b", "block": None}),
+        "FrameTask": (_in_stack(tasks.FrameTask, velocities), lambda rng: {
+            "robot": robot, "frame": "ee", "gain": 0.5, "weight": np.ones(6),
+            "position_only": False, "lm_damping": 0.1, "name": "ee", "block": None}),
+        "PostureTask": (_in_stack(tasks.PostureTask, velocities), lambda rng: {
+            "robot": robot, "gain": 0.5, "weight": 1.0, "lm_damping": 0.0, "name": "posture",
+            "joints": None, "block": None}),
+        "ConfigurationLimit": (_in_stack(tasks.ConfigurationLimit, velocities, hard=True),
+                               lambda rng: {"robot": robot, "gain": 0.5, "name": "q",
+                                            "joints": None, "block": None}),
+        "VelocityLimit": (_in_stack(tasks.VelocityLimit, velocities, hard=True), lambda rng: {
+            "robot": robot, "scale": 1.0, "name": "v", "block": None}),
+        "RpyPoseTask": (_in_stack(tasks.RpyPoseTask, velocities), lambda rng: {
+            "robot": robot, "frame": "ee", "gain": 1.7, "name": "rpy", "block": None}),
+        "JointAccelerationLimit": (_in_stack(tasks.JointAccelerationLimit, velocities,
+                                             hard=True), lambda rng: {
+            "robot": robot, "dt": 0.01, "method": "viable", "name": "a", "joints": None,
+            "block": None}),
+        "ManipulabilityTask": (_in_stack(ManipulabilityTask, velocities),
+                               lambda rng: {"robot": robot, "frame": "ee", "gamma1": 5.0,
+                                            "gamma2": 0.5, "name": "m", "joints": None,
+                                            "block": None}),
+        "DexterousPosture": (_in_stack(tasks.DexterousPosture, velocities), lambda rng: {
+            "robot": robot, "q_dex": rng.uniform(-1, 1, 6), "gain": 3.5, "name": "dex",
+            "block": None}),
+        "WheelWrench": (_in_stack(tasks.WheelWrench, lambda: wbc.Variables(tau=4), hard=True),
+                        lambda rng: {"J": wheel_jacobian(rng), "name": "wrench",
+                                     "block": "tau"}),
+        "FrictionUtilisation": (_in_stack(tasks.FrictionUtilisation,
+                                          lambda: wbc.Variables(tau=4)), lambda rng: {
+            "n_wheels": 4, "mu": 0.5, "name": "friction", "parameters": "friction",
+            "block": "tau"}),
+        "UtilisationBound": (_in_stack(tasks.UtilisationBound,
+                                       lambda: wbc.Variables(tau=4, t=1), hard=True),
+                             lambda rng: {"n_wheels": 4, "mu": 0.5, "name": "u",
+                                          "parameters": "friction", "block": "tau",
+                                          "bound": "t"}),
+        "distribution_stack": (tasks.distribution_stack, lambda rng: {
+            "J": wheel_jacobian(rng), "method": "minmax", "mu": 0.5}),
+        "TorqueDistribution": (tasks.TorqueDistribution, lambda rng: {
+            "J": wheel_jacobian(rng), "method": "proportional", "mu": 0.5, "backend": "daqp",
+            "profile": "default"}),
+        "VelocityField": (tasks.VelocityField, lambda rng: dict(field)),
+        "VelocityField.rate_limit_level": (rate_limit_level, lambda rng: {
+            "priority": 0, "block": None, "name": "rate"}),
+        "joint_acceleration_bounds": (tasks.joint_acceleration_bounds, lambda rng: {
+            "q": rng.uniform(-0.5, 0.5, 3), "qd": np.zeros(3), "q_min": -1.0, "q_max": 1.0,
+            "v_min": -1.0, "v_max": 1.0, "a_min": -2.0, "a_max": 2.0, "dt": 0.01,
+            "method": "xing"}),
+        "sharing_factor": (tasks.sharing_factor, lambda rng: {
+            "error_norm": ca.SX.sym("e"), "r_fm": 0.25, "r_mm": 0.9}),
+        "share_task": (share, lambda rng: {"psi": 0.5, "n_base": 3, "priority": 0}),
+        "ArmCompensation": (tasks.ArmCompensation, lambda rng: {
+            "n_arm": 3, "rows": 6, "backend": "daqp", "profile": "default"}),
+        "robots.load": (wbc.robots.load, lambda rng: {"name": "omni4_arm6"}),
+        "robots.make_base": (wbc.robots.make_base, lambda rng: {"name": "mecanum"}),
+        "robots.from_urdf": (wbc.robots.from_urdf, lambda rng: {
+            "urdf": ur5, "base": "omni", "ee_frame": "tool0", "mount": np.eye(4),
+            "name": "r", "locked_joints": (), "v_max": np.ones(6), "a_max": np.ones(6),
+            "home": np.zeros(6)}),
+        "arms.arm_from_urdf": (arms.arm_from_urdf, lambda rng: {
+            "path": ur5, "ee_frame": "tool0", "name": "ur5", "locked_joints": (),
+            "locked_values": None, "v_max": np.ones(6), "a_max": np.ones(6),
+            "home": np.zeros(6)}),
+        "arms.arm_from_model": (arms.arm_from_model, lambda rng: {
+            "model": ur5_model, "ee_frame": "tool0", "name": "ur5", "v_max": np.ones(6),
+            "a_max": np.ones(6), "home": np.zeros(6)}),
+        "Controller.set_references": (ctrl.set_references, lambda rng: {
+            "ee": target.copy(), "posture": robot.neutral()}),
+    }
+
+
+def constructor_cases(seed: int, count: int):
+    """Yield ``(case, class, defect, message)`` of the constructor family: ``count`` calls,
+    round-robin over :func:`constructor_specs`, each with one or two arguments replaced by a
+    bad value (one call in ten keeps its valid arguments)."""
+    specs = constructor_specs()
+    names = list(specs)
+    rng = np.random.default_rng([seed, 2000])
+    for k in range(count):
+        name = names[k % len(names)]
+        call, valid = specs[name]
+        kwargs = valid(rng)
+        injected = {}
+        if rng.random() >= 0.1:
+            for argument in rng.choice(list(kwargs), size=min(len(kwargs), int(
+                    rng.integers(1, 3))), replace=False):
+                kind = str(rng.choice(BAD_VALUES))
+                kwargs[str(argument)] = bad_value(rng, kwargs[str(argument)], kind)
+                injected[str(argument)] = kind
+        outcome, defect, message = classify_call(call, kwargs)
+        case = {"family": "constructors", "backend": "constructors", "seed": seed,
+                "constructor": name, "call": k,
+                "injected": ", ".join(f"{a}={v}" for a, v in injected.items()) or "none"}
+        yield case, outcome, defect, message
+
+
+def classify_call(call, kwargs: dict) -> tuple[str, str | None, str]:
+    """Class one constructor call ``call(**kwargs)``: ``"success"``, ``"error"`` (a
+    :class:`~wbc.WbcError`) or a ``"defect"`` (any other exception)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            call(**kwargs)
+    except wbc.WbcError as exc:
+        return "error", None, f"{type(exc).__name__}: {exc}"
+    except Exception as exc:  # what the family looks for
+        return "defect", "exception", f"{type(exc).__name__}: {exc}"
+    return "success", None, "built"
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | None = None):
+    """Run about ``cases`` cases: a twentieth of them (at least one per constructor)
+    constructor calls, the rest spread over ``backends`` (a sixth of them robot ticks); stops
+    early after ``seconds`` [s]. Returns the JSON-ready result."""
+    constructor_calls = max(CONSTRUCTOR_MIN, cases // 20)
+    per_backend = -(-(cases - constructor_calls) // len(backends))  # rounded up
+    per_backend = max(per_backend, 1)
+    robot_ticks = max(1, per_backend // 6 // len(wbc.robots.names()))
+    stack_ticks = per_backend - robot_ticks * len(wbc.robots.names())
+    draws = 2
+    structures = max(1, -(-stack_ticks // (draws * TICKS)))
+    outcomes: dict[str, dict[str, int]] = {}
+    defects: list[dict] = []
+    families_count: dict[str, int] = {}
+    total, start = 0, time.perf_counter()
+    for i, backend in enumerate(backends):
+        if seconds is not None and time.perf_counter() - start > seconds:
+            break
+        families = [stack_cases(backend, seed, structures, draws),
+                    robot_cases(backend, seed, robot_ticks)]
+        if backend == "daqp":  # the fused cascade too (the robots' controllers take it anyway)
+            families.append(stack_cases(backend, seed, structures, draws, fused=True))
+        if i == 0:  # constructors do not depend on the backend: once
+            families.insert(0, constructor_cases(seed, constructor_calls))
+        for case, outcome, defect, message in _chain(*families):
+            counts = outcomes.setdefault(case["backend"], {"error": 0, "failure": 0,
+                                                           "success": 0, "defect": 0})
+            counts[outcome] += 1
+            families_count[case["family"]] = families_count.get(case["family"], 0) + 1
+            total += 1
+            if defect:
+                defects.append({**case, "defect": defect, "message": message[:500]})
+            if seconds is not None and time.perf_counter() - start > seconds:
+                break
+    return {"cases": total, "families": families_count, "outcomes": outcomes,
+            "defects": defects,
+            "parameters": {"seed": seed, "backends": backends, "hang_s": HANG_S,
+                           "bound_tol": BOUND_TOL, "ticks_per_draw": TICKS,
+                           "wall_s": round(time.perf_counter() - start, 1)}}
+
+
+def _chain(*generators):
+    for generator in generators:
+        yield from generator
+
+
+def markdown(result: dict) -> str:
+    """The outcome table (rows: backends) and the defects."""
+    families = ", ".join(f"{k} {v}" for k, v in result.get("families", {}).items())
+    lines = [f"# wbc fuzz: {result['cases']} cases, {len(result['defects'])} defects", "",
+             *([f"Cases per family: {families} (the row `constructors` is that family: "
+                "no solver).", ""] if families else []),
+             "| backend | clean error | failure status | success | defect |",
+             "|---|---|---|---|---|"]
+    for backend, c in result["outcomes"].items():
+        lines.append(f"| {backend} | {c['error']} | {c['failure']} | {c['success']} | "
+                     f"{c['defect']} |")
+    for d in result["defects"]:
+        lines.append(f"\n- `{d['backend']}` {d['family']} {d['injected']}: {d['defect']} — "
+                     f"{d['message']}")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    """``wbc fuzz [--cases N] [--backends a,b] [--seconds S] [--seed K] [--out DIR]``."""
+    parser = argparse.ArgumentParser(prog="wbc fuzz", description="a seeded fuzz campaign "
+                                     "over stacks, workspaces and robot controllers")
+    parser.add_argument("--cases", type=int, default=10_000)
+    parser.add_argument("--backends", default=",".join(available_backends()))
+    parser.add_argument("--seconds", type=float, default=None,
+                        help="stop after this wall time [s]")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, default=Path("results"))
+    args = parser.parse_args(argv)
+    if args.cases < 1:
+        parser.error("--cases must be >= 1")
+    if args.seconds is not None and not args.seconds > 0:
+        parser.error("--seconds must be > 0")
+    backends = constructible_backends(parser, args.backends)
+    result = campaign(args.cases, backends, args.seed, args.seconds)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "fuzz.json").write_text(json.dumps(result, indent=1, default=_plain))
+    (args.out / "fuzz.md").write_text(markdown(result))
+    print(markdown(result))
+    return 1 if result["defects"] else 0  # a CI gate: defects fail the command
+
+
+def _plain(value):
+    return value.tolist() if isinstance(value, np.ndarray) else str(value)

@@ -1,0 +1,662 @@
+r"""`wbc study petric`: Petrič & Žlajpah's decoupled velocity-field controller on the Tiago + Panda,
+in simulation, beside a whole-body QP doing the same task.
+
+What runs (``run``), all on :mod:`wbc.sim` with the catalogue robot ``"tiago_panda"``:
+
+* **the field itself** (Figs. 3–4): ``VelocityField.raw`` on x–y slices at five heights
+  z = −0.3 … 0.9 m of the TEE point (no state: the retreat heading is computed from ``p``);
+* **§IV-B's experiments**, each a world-frame trajectory of the TCP (``"ee"``, position only)
+  defined in :data:`SCENARIOS` (the paper gives only figures, so each is our reconstruction of
+  what its figure shows — see :func:`trajectory`), run with
+
+  - ``"decoupled"`` — the paper's controller (:class:`DecoupledController`): the arm follows
+    eq. 22 (DLS, λ = 0.05, exact null-space projector, posture towards the joint-range centre)
+    as the two-level stack of :func:`arm_stack`, the base follows
+    ``wbc.tasks.VelocityField.step`` of the TEE point — the two know nothing of each other;
+  - ``"fixed_base"`` (Fig. 6 only) — the same arm controller, base commanded zero;
+  - ``"decoupled_eq26"`` (:data:`EQ26_SCENARIOS`) — the decoupled controller with eq. 26's
+    damped projector as printed, to see what its leak does to the tracking;
+  - ``"whole_body"`` — beyond the paper (:class:`WholeBodyController`): one QP cascade over
+    base (v, ω) and arm joints: level 0 the same damped TCP task with every column, level 1 the
+    field's (v, ω) as a soft base reference, level 2 the posture; velocity limits hard.
+
+Modelling choices (the paper leaves them open; all in ``parameters`` of the JSON):
+
+* ``p`` — the reduced point of :class:`wbc.robots.ReducedPanda` *relative to the arm's root*
+  (the base frame's axes, origin moved by the mount offset (−0.062, 0, 0.2915) m), so that the
+  field's sphere centre ``c = (0, 0, l0)`` is the Panda's shoulder as in the paper's Fig. 1.
+* control period ``DT`` = 0.02 s (50 Hz); ``K_p`` = 10 1/s — the paper's "order of 10³" is a
+  Cartesian *stiffness* of a torque-controlled arm; a velocity-level gain must keep
+  ``K_p·dt < 1``. The feed-forward ``ẋ_d`` of eq. 22 enters by giving the position task the
+  target ``x_d + ẋ_d / K_p``: then ``K_p (target − x) = K_p e + ẋ_d`` exactly. Eq. 22's
+  feed-forward is the world velocity rotated into the base frame (``^bT'_w ẋ_d``): the base's
+  own motion is not compensated, as in the paper; the feedback absorbs it.
+* the posture velocity ``q̇_n = K_n (q_mid − q)``, ``K_n`` = 1 1/s, ``q_mid`` the centre of
+  the Panda's joint range ("configurations close to the centre of the joint workspace").
+* the base: velocity-controlled PMB2 with a first-order lag (τ = 0.1 s) and saturation at its
+  limits (1 m/s, 1 rad/s, 1 m/s², 1 rad/s²) — :class:`wbc.sim.actuation.Lag` then
+  :class:`~wbc.sim.actuation.Saturation` on the base; arm joints saturated at the Panda's
+  velocity limits.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import wbc
+from wbc.robots import ReducedPanda, load
+from wbc.sim import Simulation, actuation
+from wbc.solvers import available_backends
+from wbc.solvers.reference import PETRIC_LAMBDA, projector_leak
+from wbc.tasks import FrameTask, LinearTask, PostureTask, VelocityField, VelocityLimit
+
+from .study import Claim, StudyResult, save_figure, study_main, timing_summary
+
+__all__ = ["DecoupledController", "SCENARIOS", "WholeBodyController", "arm_stack", "main",
+           "run", "trajectory", "whole_body_stack"]
+
+ROBOT = "tiago_panda"
+DT = 0.02
+"""Control period [s]."""
+KP = 10.0
+"""Task-space gain ``K_p`` of eq. 22 [1/s]."""
+K_POSTURE = 1.0
+"""Gain ``K_n`` of the null-space posture velocity [1/s]."""
+BASE_LAG = 0.1
+"""Time constant of the base's velocity loop [s]."""
+Q_ARM0 = np.array([0.0, 0.3, 0.0, -2.1, 0.0, 2.4, math.pi / 4])
+"""Start configuration of the arm [rad]: TEE at (0.49, 0, 0.38) m from the arm root, 0.50 m
+from the shoulder — inside the field's still zone — with the hand pointing down."""
+EQ26_SCENARIOS = ("forward", "sine_large", "free")
+"""Scenarios also run with the paper's damped projector (eq. 26 as printed) on the arm."""
+SLICES_Z = (-0.3, 0.0, 0.3, 0.6, 0.9)
+"""Heights of the Fig. 3–4 slices [m] (TEE z from the arm root)."""
+
+
+# ----------------------------------------------------------------------------- controllers
+def arm_stack(robot, lam: float = PETRIC_LAMBDA, kp: float = KP, k_posture: float = K_POSTURE,
+              dt: float = DT, projector: str = "exact") -> wbc.Stack:
+    """Eq. 22 as a stack over all ``nv`` velocities, the base's pinned (mobility 0), the TCP
+    position task named ``"ee"`` (``FrameTask``, gain ``K_p·dt``) and ``PostureTask``
+    ``"posture"`` (gain ``K_n·dt``) towards the centre of the arm's joint range.
+
+    ``projector="exact"``: two levels — the task damped by ``ρ² = λ``, then the posture under
+    the task's rows (docs/DESIGN.md, math note 3: the cascade adds exactly ``(I − J⁺J) q̇_n``).
+    ``projector="damped"`` (eq. 26 as printed): one level, the task plus the posture weighted
+    by ``λ`` — ``min ||J q̇ − u||² + λ||q̇ − q̇_n||²``, whose minimiser is
+    ``J#u + (I − J#J) q̇_n`` (see :mod:`wbc.solvers.reference_petric_arm`)."""
+    nb = int(robot.nv_base)
+    mobility = np.r_[np.zeros(nb), np.ones(robot.nv - nb)]
+    exact = projector == "exact"
+    if not exact and projector != "damped":
+        raise wbc.InvalidValueError(f"projector must be 'exact' or 'damped', got {projector!r}")
+    stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping={0: math.sqrt(lam)} if exact else 0.0,
+                      mobility=mobility, min_norm=False)
+    stack.add(FrameTask(robot, "ee", gain=kp * dt, position_only=True, name="ee"), priority=0)
+    _add_posture(stack, robot, k_posture * dt, priority=1 if exact else 0,
+                 weight=1.0 if exact else lam)
+    return stack
+
+
+def _add_posture(stack, robot, gain: float, priority: int, weight: float = 1.0) -> None:
+    posture = PostureTask(robot, gain=gain, name="posture")
+    stack.add(posture, priority=priority, weight=weight)
+    stack.parameter("posture.target", robot.nq, _posture_target(robot))
+
+
+def _posture_target(robot) -> np.ndarray:
+    """``robot.neutral()`` with the arm joints at the centre of their range [rad]."""
+    arm = slice(robot.nq - robot.n_arm, robot.nq)
+    target = robot.neutral()
+    target[arm] = 0.5 * (robot.limits.q_lower[arm] + robot.limits.q_upper[arm])
+    return target
+
+
+def whole_body_stack(robot, lam: float = PETRIC_LAMBDA, kp: float = KP,
+                     k_posture: float = K_POSTURE, dt: float = DT) -> wbc.Stack:
+    """The same task as one QP cascade over base (v, ω) and arm joints: level 0 the damped TCP
+    task with every column, level 1 the field's ``(v, ω)`` as a soft reference (parameter
+    ``"base.b"``), level 2 the posture; the robot's velocity limits are hard bounds."""
+    nb = int(robot.nv_base)
+    stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping={0: math.sqrt(lam)}, min_norm=False)
+    stack.add(FrameTask(robot, "ee", gain=kp * dt, position_only=True, name="ee"), priority=0)
+    stack.add(LinearTask(np.eye(nb, robot.nv), np.zeros(nb), name="base"), priority=1)
+    _add_posture(stack, robot, k_posture * dt, priority=2)
+    stack.constrain(VelocityLimit(robot, name="limits"))
+    return stack
+
+
+class _FieldDriver:
+    """The field's input: ``p`` of the reduced Panda relative to the arm root (base axes)."""
+
+    def __init__(self, robot, field: VelocityField) -> None:
+        self.reduced = ReducedPanda(robot)
+        self.root = robot.mount.translation.copy()
+        self.field = field
+
+    def reset(self) -> None:
+        """Field at rest, no latched heading (before a new run)."""
+        self.field.reset()
+
+    def tee(self, q) -> np.ndarray:
+        """The TEE point ``p`` [m] (arm-root origin, base axes)."""
+        return self.reduced.point(q, "base") - self.root
+
+    def base_command(self, q) -> np.ndarray:
+        return np.array(self.field.step(self.tee(q)))
+
+
+class DecoupledController:
+    """Petrič & Žlajpah's controller: eq. 22 on the arm (:func:`arm_stack`) and the velocity
+    field on the base, independent of each other.
+
+    Args:
+        robot: ``load("tiago_panda")``.
+        field: the base's :class:`wbc.tasks.VelocityField`.
+        backend: QP backend of the arm stack.
+        dt: control period [s].
+        projector: the arm's null-space projector, ``"exact"`` or ``"damped"`` (eq. 26 as
+            printed), see :func:`arm_stack`.
+
+    Attributes:
+        move_base: ``False`` holds the base still (Fig. 6's fixed base); the field is then not
+            evaluated.
+
+    ``step(q, v, ee=T)`` takes the TCP target pose ``T`` (4, 4) (its translation is used) and
+    returns the velocity command ``(v, ω, q̇_arm)``.
+    """
+
+    def __init__(self, robot, field: VelocityField, backend: str = "daqp",
+                 dt: float = DT, projector: str = "exact") -> None:
+        self.arm = wbc.Controller(robot, arm_stack(robot, dt=dt, projector=projector),
+                                  backend=backend, dt=dt)
+        self.driver = _FieldDriver(robot, field)
+        self.nb = int(robot.nv_base)
+        self.move_base = True
+        self.last_solution: wbc.Solution | None = None
+
+    def step(self, q, v=None, **references) -> np.ndarray:
+        command = np.array(self.arm.step(q, v, **references))
+        self.last_solution = self.arm.last_solution
+        command[: self.nb] = self.driver.base_command(q) if self.move_base else 0.0
+        return command
+
+
+class WholeBodyController:
+    """Beyond the paper: the field's ``(v, ω)`` as a soft reference one level below the TCP
+    task of a whole-body QP (:func:`whole_body_stack`). Same ``step`` as
+    :class:`DecoupledController`."""
+
+    def __init__(self, robot, field: VelocityField, backend: str = "daqp",
+                 dt: float = DT) -> None:
+        self.qp = wbc.Controller(robot, whole_body_stack(robot, dt=dt), backend=backend, dt=dt)
+        self.driver = _FieldDriver(robot, field)
+        self.last_solution: wbc.Solution | None = None
+
+    def step(self, q, v=None, **references) -> np.ndarray:
+        base = self.driver.base_command(q)
+        command = np.array(self.qp.step(q, v, **{"base.b": base}, **references))
+        self.last_solution = self.qp.last_solution
+        return command
+
+
+# ----------------------------------------------------------------------------- trajectories
+def _smooth(t: float, t0: float, duration: float) -> float:
+    """0 → 1 with zero velocity at both ends (cosine), over ``[t0, t0 + duration]``."""
+    s = min(max((t - t0) / duration, 0.0), 1.0)
+    return 0.5 - 0.5 * math.cos(math.pi * s)
+
+
+def _via(points, t: float, leg: float) -> np.ndarray:
+    """Piecewise smooth motion through ``points`` (offsets [m]), ``leg`` seconds per segment."""
+    points = np.asarray(points, dtype=float)
+    k = min(int(t // leg), len(points) - 2)
+    return points[k] + _smooth(t, k * leg, leg) * (points[k + 1] - points[k])
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A TCP trajectory as an offset [m] from the start position (world axes; the base starts
+    at the origin facing +x), ``offset(t)``, and its duration [s]."""
+
+    figure: str
+    description: str
+    seconds: float
+    offset: Callable[[float], np.ndarray]
+
+
+SCENARIOS: dict[str, Scenario] = {
+    "forward": Scenario(
+        "Fig. 6", "1.2 m forward along x in 10 s, then held for 2 s", 12.0,
+        lambda t: np.array([1.2 * _smooth(t, 0.0, 10.0), 0.0, 0.0])),
+    "retreat_high": Scenario(
+        "Fig. 7 left", "back over the base and to its left, rising 0.40 m (the TEE ends 0.45 m "
+        "above the shoulder): (−0.37, 0.20, +0.40) m in 6 s, held 4 s", 10.0,
+        lambda t: _smooth(t, 0.0, 6.0) * np.array([-0.37, 0.20, 0.40])),
+    "retreat_low": Scenario(
+        "Fig. 7 right", "the same motion in the plane, descending 0.43 m (the TEE ends at the "
+        "arm root's height, 0.23 m from the base axis): (−0.37, 0.20, −0.43) m in 6 s, held "
+        "4 s", 10.0,
+        lambda t: _smooth(t, 0.0, 6.0) * np.array([-0.37, 0.20, -0.43])),
+    "lateral": Scenario(
+        "Fig. 8 left", "sideways: 0.6 m to the left and 0.25 m back in 6 s, held 4 s", 10.0,
+        lambda t: _smooth(t, 0.0, 6.0) * np.array([-0.25, 0.60, 0.0])),
+    "vertical": Scenario(
+        "Fig. 8 right", "up 0.35 m (and 0.1 m forward) in 5 s, then down 0.80 m and 0.25 m "
+        "back in 5 s, held 2 s", 12.0,
+        lambda t: _via([[0, 0, 0], [0.1, 0, 0.35], [-0.15, 0, -0.45]], t, 5.0)),
+    "sine_small": Scenario(
+        "Fig. 9 left", "forward at 0.1 m/s with a lateral sine of amplitude 0.05 m, period "
+        "6 s, for 18 s", 18.0,
+        lambda t: np.array([0.1 * t, 0.05 * math.sin(2 * math.pi * t / 6.0), 0.0])),
+    "sine_large": Scenario(
+        "Fig. 9 right", "the same with amplitude 0.50 m", 18.0,
+        lambda t: np.array([0.1 * t, 0.50 * math.sin(2 * math.pi * t / 6.0), 0.0])),
+    "square": Scenario(
+        "Fig. 10 left", "a horizontal 0.8 m square (forward, left, back, right), 4 s per "
+        "side, stopping at each corner", 16.0,
+        lambda t: _via([[0, 0, 0], [0.8, 0, 0], [0.8, 0.8, 0], [0, 0.8, 0], [0, 0, 0]], t,
+                       4.0)),
+    "free": Scenario(
+        "Fig. 10 right", "a free 3-D path: (0.8 sin(πt/T), 0.5 sin(2πt/T), 0.25 sin(3πt/T)) "
+        "m, T = 16 s", 16.0,
+        lambda t: np.array([0.8 * math.sin(math.pi * t / 16), 0.5 * math.sin(2 * math.pi * t / 16),
+                            0.25 * math.sin(3 * math.pi * t / 16)])),
+}
+"""§IV-B's experiments, reconstructed from the paper's figures (it gives no numbers)."""
+
+
+def trajectory(name: str, start: np.ndarray, kp: float = KP, scale: float = 1.0):
+    """``(x_d(t), reference(t))`` of scenario ``name``: the desired TCP position [m] and the
+    controller's reference dict ``{"ee": T}`` whose translation ``x_d + ẋ_d/K_p`` carries the
+    feed-forward (module docstring). ``scale`` shortens time (quick runs)."""
+    offset = SCENARIOS[name].offset
+
+    def desired(t: float) -> np.ndarray:
+        return start + offset(t / scale)
+
+    def reference(t: float) -> dict:
+        h = 1e-4
+        velocity = (desired(t + h) - desired(max(t - h, 0.0))) / (t + h - max(t - h, 0.0))
+        target = np.eye(4)
+        target[:3, 3] = desired(t) + velocity / kp
+        return {"ee": target}
+
+    return desired, reference
+
+
+# ----------------------------------------------------------------------------- runs
+def _start(robot) -> np.ndarray:
+    q0 = robot.neutral()
+    q0[robot.nq - robot.n_arm:] = Q_ARM0
+    return q0
+
+
+def _simulate(robot, controller, name: str, scale: float, seconds: float | None = None):
+    """Run scenario ``name`` (time scaled by ``scale``) for its duration or ``seconds``."""
+    q0 = _start(robot)
+    start = robot.frame_pose(q0, "ee")[:3, 3].copy()
+    desired, reference = trajectory(name, start, scale=scale)
+    nb = int(robot.nv_base)
+    chain = [actuation.Lag(BASE_LAG, joints="base"),
+             actuation.Saturation(velocity=robot.limits.v_upper[:nb],
+                                  acceleration=robot.limits.a_upper[:nb], joints="base"),
+             actuation.Saturation(velocity=robot.limits.v_upper[nb:], joints="arm")]
+    driver = controller.driver
+
+    def ee_error(tick) -> float:
+        return float(np.linalg.norm(desired(tick.t) - tick.robot.frame_pose(tick.q, "ee")[:3, 3]))
+
+    signals = {"ee_error": ee_error,
+               "ee_position": lambda tick: tick.robot.frame_pose(tick.q, "ee")[:3, 3].copy(),
+               "ee_desired": lambda tick: desired(tick.t),
+               "tee": lambda tick: driver.tee(tick.q)}
+    sim = Simulation(robot, controller, DT, actuation=chain, signals=signals)
+    seconds = SCENARIOS[name].seconds * scale if seconds is None else seconds
+    return sim.run(seconds=seconds, q0=q0, references=reference)
+
+
+def _leak(robot, run) -> np.ndarray:
+    """Per tick, ``||J (I − J#J) q̇_n||`` [m/s]: what eq. 26's damped projector would add to
+    the TCP velocity (``J`` the arm's position Jacobian, ``q̇_n`` the posture velocity)."""
+    probe = robot.clone()
+    na = robot.n_arm
+    centre = _posture_target(robot)[-na:]
+    out = np.empty(len(run.t))
+    for k, q in enumerate(run.q):
+        J = probe.frame_jacobian(q, "ee")[:3, -na:]
+        out[k] = np.linalg.norm(projector_leak(J, K_POSTURE * (centre - q[-na:])))
+    return out
+
+
+def _series(run, leak=None) -> dict:
+    """The JSON series of a run: ``t`` [s], ``base_velocity`` (N, 2) [m/s, rad/s] (true),
+    ``ee_error`` [m], ``base_pose`` (N, 3) [m, m, rad], ``command_base`` (N, 2) (the base's
+    command), ``ee_position`` / ``ee_desired`` (N, 3) [m] (world), ``tee`` (N, 3) [m] (the
+    field's input), and ``leak`` [m/s] (:func:`_leak`) for the decoupled runs."""
+    s = {"t": run.t, "base_velocity": run.base_velocity, "ee_error": run.signals["ee_error"],
+         "base_pose": run.q[:, :3], "command_base": run.command[:, :2],
+         "ee_position": run.signals["ee_position"], "ee_desired": run.signals["ee_desired"],
+         "tee": run.signals["tee"]}
+    if leak is not None:
+        s["leak"] = leak
+    return {k: np.asarray(v) for k, v in s.items()}
+
+
+MODE_POINTS = {"still": (0.49, 0.0, 0.38), "forward": (0.75, 0.0, 0.38),
+               "retreat": (0.15, 0.10, 0.0)}
+"""A TEE point [m] in each of the field's modes (arm-root origin)."""
+
+
+def _mode_timing(field, rounds: int) -> dict[str, np.ndarray]:
+    """Wall time [s] of ``field.step`` at a point of each mode, the modes interleaved round by
+    round so that the machine's load drifts affect them alike."""
+    clock = time.perf_counter
+    spent = {mode: np.empty(rounds) for mode in MODE_POINTS}
+    points = {mode: np.array(p) for mode, p in MODE_POINTS.items()}
+    for k in range(rounds):
+        for mode, p in points.items():
+            t0 = clock()
+            field.step(p)
+            spent[mode][k] = clock() - t0
+    return spent
+
+
+def _field_slices(field) -> dict:
+    """``raw`` of the field on an x–y grid [m] at each height of :data:`SLICES_Z`."""
+    xs = np.linspace(-1.0, 1.0, 41)
+    z, y, x = np.meshgrid(np.array(SLICES_Z), xs, xs, indexing="ij")  # (slice, row y, col x)
+    v, w = field.raw(np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1))
+    return {"x": xs, "y": xs, "z": np.array(SLICES_Z), "v": v.reshape(x.shape),
+            "omega": w.reshape(x.shape)}
+
+
+# ----------------------------------------------------------------------------- claims
+def _rms(x) -> float:
+    return float(np.sqrt(np.mean(np.square(x))))
+
+
+def _heading_change(series) -> float:
+    return float(np.max(np.abs(series["base_pose"][:, 2] - series["base_pose"][0, 2])))
+
+
+def _path_length(series) -> float:
+    """Distance [m] the base travelled in the plane."""
+    steps = np.diff(series["base_pose"][:, :2], axis=0)
+    return float(np.linalg.norm(steps, axis=1).sum())
+
+
+def _backward_travel(series) -> float:
+    """The largest distance [m] the base went backwards along its start heading."""
+    pose = series["base_pose"]
+    forward = (pose[:, 0] - pose[0, 0]) * math.cos(pose[0, 2]) + \
+        (pose[:, 1] - pose[0, 1]) * math.sin(pose[0, 2])
+    return float(max(0.0, -forward.min()))
+
+
+def _claims(runs: dict, field, timing_modes: dict) -> list[Claim]:
+    dec = {name: runs[name]["decoupled"] for name in SCENARIOS}
+    fixed = runs["forward"]["fixed_base"]
+    claims = []
+
+    e_fixed, e_moving = _rms(fixed["ee_error"]), _rms(dec["forward"]["ee_error"])
+    claims.append(Claim(
+        "fixed_base_error", "Fig. 6: forward tracking error with the base fixed ≫ with the "
+        "base moving", "significantly higher with the base fixed (no number given)",
+        {"rms_fixed_m": e_fixed, "rms_moving_m": e_moving, "ratio": e_fixed / e_moving},
+        e_fixed >= 3 * e_moving, "RMS of the TCP position error over the run; ≫ read as a "
+        "ratio ≥ 3"))
+
+    high, low = dec["retreat_high"], dec["retreat_low"]
+    back_h, back_l = _backward_travel(high), _backward_travel(low)
+    # direction of the low run's turn against the side the TCP went to, and where the TEE
+    # ends (eq. 11 aims at φ_t = −sign(φ)·30°)
+    turn_sign = float(np.sign(low["base_pose"][-1, 2] - low["base_pose"][0, 2]))
+    tcp_side = float(np.sign(low["ee_desired"][-1, 1] - low["ee_desired"][0, 1]))
+    tee_phi = math.degrees(math.atan2(low["tee"][-1, 1], low["tee"][-1, 0]))
+    turn_h, turn_l = math.degrees(_heading_change(high)), math.degrees(_heading_change(low))
+    claims.append(Claim(
+        "retreat_low", "Fig. 7: at low TCP height the base retreats and turns away",
+        "retreats and reorients", {"backward_m": back_l, "turn_deg": turn_l,
+                                   "turns_towards_tcp_side": turn_sign == tcp_side,
+                                   "final_tee_phi_deg": tee_phi},
+        back_l >= 0.05 and turn_l >= 10.0, "largest backward travel along the start heading "
+        "≥ 5 cm and largest heading change ≥ 10°. 'Away' is not checked: the paper does not "
+        "say from what; eqs. 10–11 turn the base until the TEE lies at φ_t = −sign(φ)·30°, on "
+        "the other side of the heading (final_tee_phi_deg)"))
+    claims.append(Claim(
+        "retreat_high", "Fig. 7: at high TCP height the base mostly turns",
+        "primarily rotates, low linear velocity", {"backward_m": back_h, "turn_deg": turn_h},
+        turn_h >= 10.0 and back_h < 0.5 * back_l, "heading change ≥ 10° and less than half "
+        "the low run's backward travel"))
+
+    vertical = dec["vertical"]
+    half = vertical["t"] < vertical["t"][-1] * 5.0 / 12.0  # the rising leg
+    v_cmd = vertical["command_base"][:, 0]
+    up, down = float(v_cmd[half].max()), float(v_cmd[~half].min())
+    claims.append(Claim(
+        "vertical", "Fig. 8: the TCP rising drives the base forward, descending makes it "
+        "retreat", "advance, then retreat", {"max_v_rising": up, "min_v_descending": down},
+        up > 0.01 and down < -0.01, "largest forward field command on the rising leg and "
+        "largest backward one afterwards, beyond ±1 cm/s"))
+
+    turn_s = math.degrees(_heading_change(dec["sine_small"]))
+    turn_b = math.degrees(_heading_change(dec["sine_large"]))
+    claims.append(Claim(
+        "sine_heading", "Fig. 9: small lateral amplitude → little heading change; large → the "
+        "base rotates to follow the path", "minimal rotation vs rotation following the path",
+        {"small_deg": turn_s, "large_deg": turn_b},
+        turn_s <= 5.0 and turn_b >= 15.0, "largest heading change: ≤ 5° (small), ≥ 15° "
+        "(large)"))
+
+    commands = np.concatenate([dec[s]["command_base"] for s in SCENARIOS])
+    steps = np.concatenate([np.diff(dec[s]["command_base"], axis=0) for s in SCENARIOS])
+    worst = {"v": float(np.abs(commands[:, 0]).max()), "omega": float(np.abs(commands[:, 1]).max()),
+             "dv": float(np.abs(steps[:, 0]).max()), "domega": float(np.abs(steps[:, 1]).max())}
+    limits = {"v": field.v_max, "omega": field.omega_max, "dv": field.dv_max,
+              "domega": field.domega_max}
+    claims.append(Claim(
+        "bounds", "eqs. 16–18, 21: |v| ≤ v_max, |ω| ≤ ω_max and the per-tick changes within "
+        "Δv_max, Δω_max, always", limits, worst,
+        all(worst[k] <= limits[k] * (1 + 1e-9) for k in worst),
+        "largest base command of the field and its per-tick change over every decoupled "
+        "run (the whole-body QP's base command also carries the TCP task's share). Δv_max and "
+        "Δω_max are per tick, as printed (VelocityField's reading): at 50 Hz a loose limit "
+        "(50 m/s²); the PMB2's 1 m/s², 1 rad/s² are the actuation model's"))
+
+    medians = {mode: float(np.median(s)) for mode, s in timing_modes.items() if len(s)}
+    spread = max(medians.values()) / min(medians.values())
+    claims.append(Claim(
+        "constant_time", "§V: the field is evaluated in constant time per tick",
+        "closed form, constant time", {**{f"{m}_median_us": 1e6 * t for m, t in
+                                           medians.items()}, "spread": spread},
+        spread <= 1.5, "median wall time of field.step at a point of each mode (still / "
+        "forward / retreat), the modes interleaved; holds when the slowest mode's median is "
+        "≤ 1.5× the fastest's"))
+
+    leak = np.concatenate([dec[s]["leak"] for s in SCENARIOS])
+    eq26 = {s: {"exact_mm": 1e3 * _rms(dec[s]["ee_error"]),
+                "eq26_mm": 1e3 * _rms(runs[s]["decoupled_eq26"]["ee_error"])}
+            for s in EQ26_SCENARIOS}
+    claims.append(Claim(
+        "damped_projector_leak", "eq. 26: N = I − J#J lets the secondary task act without "
+        "impacting the primary one", "no impact (as stated)",
+        {"max_mm_s": 1e3 * float(leak.max()), "median_mm_s": 1e3 * float(np.median(leak)),
+         "bound_factor": math.sqrt(PETRIC_LAMBDA) / 2, "rms_tcp_error": eq26},
+        bool(leak.max() <= 1e-9), "||J (I − J#J) q̇_n|| per tick along every decoupled run "
+        "(q̇_n the posture velocity); nonzero because the damped inverse makes N no projector "
+        "(bounded by √λ/2·||q̇_n||); our controller uses the exact projector. rms_tcp_error: "
+        "the same scenarios run with eq. 26 as printed on the arm (method decoupled_eq26)"))
+
+    wb = {s: _rms(runs[s]["whole_body"]["ee_error"]) for s in SCENARIOS}
+    de = {s: _rms(dec[s]["ee_error"]) for s in SCENARIOS}
+    better = sum(wb[s] <= de[s] for s in SCENARIOS)
+    travel = {m: {s: _path_length(runs[s][m]) for s in SCENARIOS}
+              for m in ("decoupled", "whole_body")}
+    claims.append(Claim(
+        "whole_body_vs_decoupled", "beyond the paper: the whole-body QP (field as a soft base "
+        "reference below the TCP task) tracks at least as well as the decoupled controller",
+        "not in the paper", {"scenarios_better_or_equal": better, "of": len(SCENARIOS),
+                             "rms_whole_body_mm": {s: 1e3 * wb[s] for s in SCENARIOS},
+                             "rms_decoupled_mm": {s: 1e3 * de[s] for s in SCENARIOS},
+                             "base_path_m": travel},
+        better == len(SCENARIOS), "RMS TCP error per scenario, same trajectories and base "
+        "model; base_path_m: distance the base travelled"))
+    return claims
+
+
+# ----------------------------------------------------------------------------- figures
+_FIGURES = {"fig6": ("forward",), "fig7": ("retreat_high", "retreat_low"),
+            "fig8": ("lateral", "vertical"), "fig9": ("sine_small", "sine_large"),
+            "fig10": ("square", "free")}
+
+
+def _figures(out_dir: Path, slices: dict, runs: dict, quick: bool) -> list[str]:
+    """Figs. 3–4 (field slices) and one figure per §IV-B figure (only Fig. 6 when quick):
+    TCP error, base (v, ω), and the paths of base and TCP in the plane."""
+    import matplotlib.pyplot as plt
+
+    names = []
+    fig, axes = plt.subplots(2, len(SLICES_Z), figsize=(3.2 * len(SLICES_Z), 6.2),
+                             sharex=True, sharey=True)
+    extent = (slices["x"][0], slices["x"][-1], slices["y"][0], slices["y"][-1])
+    for row, (key, label, cmap) in enumerate((("v", "v [m/s]", "bwr"),
+                                              ("omega", "ω [rad/s]", "PiYG"))):
+        for i, z in enumerate(SLICES_Z):
+            ax = axes[row, i]
+            im = ax.imshow(slices[key][i], origin="lower", extent=extent, cmap=cmap,
+                           vmin=-1.0, vmax=1.0)
+            ax.set_title(f"{key} at z = {z:+.1f} m", fontsize=9)
+            ax.set_xlabel("x [m]")
+            ax.set_ylabel("y [m]")
+        bar = fig.colorbar(im, ax=axes[row, :].tolist(), shrink=0.8, label=label)
+        bar.ax.set_xlabel(label.split()[0])
+    names.append(save_figure(fig, out_dir / "petric_field_slices.png"))
+
+    for figure, scenarios in _FIGURES.items():
+        if quick and figure != "fig6":
+            continue
+        fig, axes = plt.subplots(3, len(scenarios), figsize=(6 * len(scenarios), 8),
+                                 squeeze=False)
+        for c, name in enumerate(scenarios):
+            for method, s in runs[name].items():
+                axes[0, c].plot(s["t"], 1e3 * s["ee_error"], label=method)
+                axes[1, c].plot(s["t"], s["base_velocity"][:, 0], label=f"v, {method}")
+                axes[1, c].plot(s["t"], s["base_velocity"][:, 1], "--", label=f"ω, {method}")
+                axes[1, c].plot(s["t"], s["base_pose"][:, 2], ":", label=f"θ, {method}")
+                axes[2, c].plot(s["base_pose"][:, 0], s["base_pose"][:, 1],
+                                label=f"base, {method}")
+                axes[2, c].plot(s["ee_position"][:, 0], s["ee_position"][:, 1], ":",
+                                label=f"TCP, {method}")
+            desired = next(iter(runs[name].values()))["ee_desired"]
+            axes[2, c].plot(desired[:, 0], desired[:, 1], "k", lw=0.8, label="TCP desired")
+            axes[0, c].set(xlabel="t [s]", ylabel="TCP error [mm]",
+                           title=f"{SCENARIOS[name].figure}: {name}")
+            axes[1, c].set(xlabel="t [s]", ylabel="base v [m/s], ω [rad/s], θ [rad]")
+            axes[2, c].set(xlabel="x [m]", ylabel="y [m]", aspect="equal", adjustable="datalim")
+            for ax in axes[:, c]:
+                ax.legend(fontsize=6)
+        fig.tight_layout()
+        names.append(save_figure(fig, out_dir / f"petric_{figure}.png"))
+    return names
+
+
+# ----------------------------------------------------------------------------- the study
+def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
+    """The study (see the module docstring); ``quick`` runs every scenario at 0.4× its
+    duration (faster trajectories) and times the backends on fewer ticks."""
+    robot = load(ROBOT)
+    scale = 0.4 if quick else 1.0
+    field = VelocityField()
+    decoupled = DecoupledController(robot, VelocityField(), backend)
+    paper_projector = DecoupledController(robot, VelocityField(), backend, projector="damped")
+    whole_body = WholeBodyController(robot, VelocityField(), backend)
+    runs: dict = {}
+    for name in SCENARIOS:
+        runs[name] = {}
+        methods: list[tuple[str, DecoupledController | WholeBodyController, bool]] = [
+            ("decoupled", decoupled, True), ("whole_body", whole_body, True)]
+        if name == "forward":
+            methods.append(("fixed_base", decoupled, False))
+        if name in EQ26_SCENARIOS:
+            methods.append(("decoupled_eq26", paper_projector, True))
+        for method, controller, move_base in methods:
+            controller.driver.reset()
+            decoupled.move_base = move_base
+            result = _simulate(robot, controller, name, scale)
+            leak = _leak(robot, result) if method == "decoupled" else None
+            runs[name][method] = _series(result, leak)
+    decoupled.move_base = True
+    slices = _field_slices(field)
+    modes = _mode_timing(VelocityField(), 300 if quick else 2000)
+    timing: dict[str, dict] = {}
+    timing_wb: dict[str, dict] = {}
+    failed: dict[str, int] = {}
+    ticks = 50 if quick else 300
+    for b in available_backends():
+        for label, make, out in (("decoupled", DecoupledController, timing),
+                                 ("whole_body", WholeBodyController, timing_wb)):
+            controller = make(robot, VelocityField(), b)
+            result = _simulate(robot, controller, "forward", scale, seconds=ticks * DT)
+            out[b] = timing_summary(result.tick_s[5:])  # first ticks: warm-up
+            failed[f"{label}:{b}"] = int(result.failures)
+    claims = _claims(runs, field, modes)
+    figures = _figures(out_dir, slices, runs, quick)
+    runs["field_slices"] = {"raw": slices}
+    parameters = {
+        "robot": ROBOT, "dt": DT, "kp": KP, "k_posture": K_POSTURE, "lambda": PETRIC_LAMBDA,
+        "base_lag_s": BASE_LAG, "q_arm0": Q_ARM0, "quick": quick, "time_scale": scale,
+        "timing_scenario": f"forward, first {ticks} ticks; 'timing' is the decoupled "
+                           "controller's tick, 'timing_whole_body' the whole-body QP's",
+        "timing_whole_body": timing_wb, "timing_failed_ticks": failed,
+        "scenarios": {n: {"figure": s.figure, "trajectory": s.description,
+                          "seconds": s.seconds * scale} for n, s in SCENARIOS.items()},
+        "field": {k: getattr(field, k) for k in ("l0", "l1", "l2", "b_d", "k_f", "k_r",
+                                                  "k_omega", "delta_f", "delta_r", "phi_min",
+                                                  "phi_max", "phi_t", "epsilon", "v_max",
+                                                  "omega_max", "alpha", "dv_max", "domega_max")},
+    }
+    return StudyResult("petric", claims, runs, timing, figures, _summary(quick, failed),
+                       parameters)
+
+
+def _summary(quick: bool, failed: dict[str, int]) -> str:
+    lines = [
+        "Petrič & Žlajpah's decoupled controller (eq. 22 DLS arm + the spatially modulated "
+        "velocity field on the base) on the Tiago + Panda in `wbc.sim`, beside a whole-body "
+        "QP cascade (TCP task, then the field as a soft base reference, then the posture).",
+        "",
+        "Choices the paper leaves open (see `parameters` in the JSON and the module docstring "
+        "of `wbc.experiments.petric`): the TEE point is taken from the arm's root; 50 Hz; "
+        "K_p = 10 1/s (a velocity-level gain, not the paper's Cartesian stiffness) with the "
+        "feed-forward folded into the task's target; posture gain 1 1/s towards the joint-range "
+        "centre; base with a 0.1 s velocity lag and the PMB2's velocity/acceleration limits; "
+        "the arm uses the exact null-space projector, and the damped projector of eq. 26 is "
+        "evaluated along the runs (claim `damped_projector_leak`).",
+        "",
+        "Trajectories (our reconstructions; the paper gives figures only):",
+    ]
+    lines += [f"- `{n}` ({s.figure}): {s.description}." for n, s in SCENARIOS.items()]
+    failing = {k: n for k, n in failed.items() if n}
+    if failing:
+        lines += ["", "Ticks not solved in the timing runs (the command then comes from the "
+                  "levels above the failed one, `partial`): "
+                  + ", ".join(f"{k}: {n}" for k, n in failing.items()) + "."]
+    if quick:
+        lines += ["", "Quick run: every trajectory at 0.4× its duration (faster motion)."]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    """``wbc study petric [--backend B] [--out DIR] [--quick]``."""
+    return study_main("petric", run, argv)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

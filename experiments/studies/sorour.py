@@ -1,0 +1,408 @@
+"""`wbc study sorour`: Sorour, Cherubini & Fraisse's simulations (§V) rerun on wbc.
+
+Robot ``mpo700_lwr4`` (Neobotix MPO700 + KUKA LWR-IV). Five target poses of the end tip over
+65 s (Table II), with Table I's parameters, for three redundancy resolutions:
+
+* ``pinv`` — the whole-body damped pseudo-inverse of eq. 8 (one level, ``ρ``, no mobility);
+* ``proposed`` — eq. 9: the ψ-shared task (per-tick mobility on the task's level) and the
+  dexterous posture in the null space (exact weighted QP form, docs/DESIGN.md, math note 3);
+* ``compensated`` — eq. 9 plus eq. 14: the arm makes up for the base velocity the steering
+  controller will not deliver.
+
+The base is simulated through its own controller (:class:`wbc.robots.steerable_control.
+SteerableDrive`): the commanded base twist goes through the ICR steering QP and the drive
+controller, and the base moves at the resulting *feasible* twist ``q̇_bf``. The compensated
+controller predicts ``q̇_bf`` with its own copy of the same steering controller (same state,
+same inputs: the paper's "next sample" prediction).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import ConvexHull
+
+import wbc
+from wbc.robots import load
+from wbc.robots.steerable_control import (
+    MPO700_STEER_LIMITS,
+    SteerableController,
+    SteerableDrive,
+    scale_into,
+)
+from wbc.sim import Simulation
+from wbc.solvers import available_backends
+from wbc.solvers.reference import task_sharing_factor
+from wbc.tasks import ArmCompensation, DexterousPosture, RpyPoseTask, share_task, sharing_factor
+from wbc.tasks.rpy_pose import pose_error, rpy_jacobian
+
+from .study import Claim, StudyResult, replay_timing, save_figure, study_main
+
+__all__ = ["PARAMETERS", "POSES", "SorourController", "main", "run"]
+
+#: Table I (``ts`` the control period [s]; lengths [m]; gains [1/s]).
+PARAMETERS = {"lambda_p": 1.7, "lambda_dex": 3.5, "rho": 0.001, "ts": 0.025, "Kp": 2.0,
+              "r_w": 0.09, "d": 0.045, "h_x": 0.24, "h_y": 0.19, "r_fm": 0.25, "r_mm": 0.9,
+              "steer_rate_max": MPO700_STEER_LIMITS[0],
+              "steer_acceleration_max": MPO700_STEER_LIMITS[1], "icr_gain": 10.0}
+#: Table II: initial end-tip pose, then (start time [s], target pose (x, y, z, roll, pitch,
+#: yaw)); the dexterous arm configuration.
+INITIAL_POSE = np.array([0.708, 0.004, 1.08, math.pi / 2, 0.0, 0.0])
+POSES = ((0.0, (5.0, 1.5, 1.0, 0.0, 0.0, 0.0)),
+         (20.0, (5.0, 1.3, 1.0, 0.0, 0.0, 0.0)),
+         (25.0, (4.8, 1.3, 1.0, 0.0, 0.0, -math.pi / 2)),
+         (35.0, (5.0, 1.5, 1.0, 0.0, 0.0, 0.0)),
+         (45.0, (4.0, -0.5, 1.0, math.pi / 2, 0.0, 0.0)))
+DURATION = 65.0
+Q_DEX = np.array([math.pi / 2, math.pi / 2, math.pi / 2, -math.pi / 2, 0.0, 0.0, 0.0])
+VARIANTS = ("pinv", "proposed", "compensated")
+N_BASE = 3
+#: MPO700 deck outline [m] (the body box of wbc.robots.mpo700: 0.99 × 0.65 m).
+DECK = np.array([[0.495, 0.325], [-0.495, 0.325], [-0.495, -0.325], [0.495, -0.325]])
+ARM_FRAMES = ("lwr_joint_2", "lwr_joint_4", "lwr_joint_6", "lwr_flange", "ee")
+FOOTPRINT_WINDOW = 20.0  # [s]: the travel to the first, far pose
+STEADY_WINDOW = 2.0  # [s]: the end of each pose interval
+
+
+def target_at(t: float) -> np.ndarray:
+    """Table II's target pose at time ``t`` [s]."""
+    current = POSES[0][1]
+    for start, pose in POSES:
+        if t >= start:
+            current = pose
+    return np.array(current, dtype=float)
+
+
+class SorourController:
+    """One of the three variants (see the module docstring) as a ``step(q, v, ee=target)``.
+
+    Attributes:
+        last_solution: the eq. 8/9 stack's solution of the last tick.
+        psi: ψ of the last tick (eq. 11; ``nan`` for ``pinv``, which shares nothing).
+        tick_parts: wall times [s] of the last tick: ``"stack"``, ``"icr_qp"``,
+            ``"compensation"``.
+    """
+
+    def __init__(self, robot, variant: str, backend: str = "daqp") -> None:
+        if variant not in VARIANTS:
+            raise wbc.UnknownNameError(f"unknown variant {variant!r}; variants are {VARIANTS}")
+        p = PARAMETERS
+        self.robot, self.variant = robot, variant
+        stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping={0: p["rho"]}, min_norm=False)
+        pose = RpyPoseTask(robot, "ee", p["lambda_p"], name="ee")
+        stack.add(pose, priority=0)
+        if variant != "pinv":
+            share_task(stack, sharing_factor(pose.position_error_norm, p["r_fm"], p["r_mm"]),
+                       N_BASE, priority=0)
+            stack.add(DexterousPosture(robot, Q_DEX, p["lambda_dex"], name="dex"), priority=1)
+        self.controller = wbc.Controller(robot, stack, backend=backend, dt=p["ts"])
+        self.steering = steering_controller(robot, backend)
+        self.compensation = (ArmCompensation(robot.nv - N_BASE, backend=backend)
+                             if variant == "compensated" else None)
+        self.last_solution: wbc.Solution | None = None
+        self.psi = math.nan
+        self.tick_parts: dict[str, float] = {}
+
+    def step(self, q, v=None, ee=None) -> np.ndarray:
+        clock = time.perf_counter
+        t0 = clock()
+        command = self.controller.step(q, ee=ee).copy()
+        self.last_solution = self.controller.last_solution
+        # the base's reference within its twist limits (direction kept), see the summary
+        command[:N_BASE] = scale_into(command[:N_BASE], self.robot.base.v_max)
+        t1 = clock()
+        predicted = self.steering.step(command[:N_BASE])  # the base's next-sample twist
+        t2 = clock()
+        pose = self.robot.frame_pose(q, "ee")
+        if self.variant != "pinv":
+            self.psi = task_sharing_factor(float(np.linalg.norm(pose_error(pose, ee)[:3])),
+                                           PARAMETERS["r_fm"], PARAMETERS["r_mm"])
+        if self.compensation is not None:
+            J = rpy_jacobian(self.robot.frame_jacobian(q, "ee"), pose[:3, :3], q[2])
+            command[N_BASE:] += self.compensation(J[:, N_BASE:], J[:, :N_BASE],
+                                                  command[:N_BASE], predicted.twist)
+        self.tick_parts = {"stack": t1 - t0, "icr_qp": predicted.qp_s,
+                           "compensation": clock() - t2}
+        return command
+
+
+def steering_controller(robot, backend: str) -> SteerableController:
+    p = PARAMETERS
+    return SteerableController(robot.base, dt=p["ts"], steer_rate=p["steer_rate_max"],
+                               steer_acceleration=p["steer_acceleration_max"],
+                               icr_gain=p["icr_gain"], drive_gain=p["Kp"], backend=backend)
+
+
+def initial_configuration(robot) -> np.ndarray:
+    """A configuration with the end tip at Table II's initial pose: the base at the origin,
+    the arm solved by the RPY pose task alone (base pinned) from ``q_dex`` — the paper does not
+    give its initial joint angles."""
+    stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping=0.01,
+                      mobility=np.r_[np.zeros(N_BASE), np.ones(robot.nv - N_BASE)])
+    stack.add(RpyPoseTask(robot, "ee", 10.0, name="ee"))
+    controller = wbc.Controller(robot, stack, dt=0.01)
+    q = np.concatenate([np.zeros(robot.nq - Q_DEX.size), Q_DEX])
+    for _ in range(500):
+        q = robot.integrate(q, controller.step(q, ee=INITIAL_POSE), 0.01)
+    error = np.abs(pose_error(robot.frame_pose(q, "ee"), INITIAL_POSE)).max()
+    if error > 1e-6:
+        raise wbc.WbcError(f"initial configuration: pose error {error:.2e} after 500 steps")
+    return q
+
+
+def footprint_area(robot, q) -> float:
+    """Area [m²] of the convex hull of the deck outline and the arm's joints and end tip,
+    projected on the floor."""
+    c, s = math.cos(q[2]), math.sin(q[2])
+    deck = DECK @ np.array([[c, s], [-s, c]]) + q[:2]
+    arm = np.array([robot.frame_pose(q, f)[:2, 3] for f in ARM_FRAMES])
+    return float(ConvexHull(np.vstack([deck, arm])).volume)
+
+
+def simulate(robot, variant: str, backend: str, q0: np.ndarray, seconds: float):
+    controller = SorourController(robot, variant, backend)
+
+    def errors(tick):
+        e = pose_error(tick.robot.frame_pose(tick.q, "ee"), tick.references["ee"])
+        return np.array([np.linalg.norm(e[:3]), np.linalg.norm(e)])
+
+    drive = SteerableDrive(steering_controller(robot, backend))
+    sim = Simulation(robot, controller, dt=PARAMETERS["ts"], actuation=[drive],
+                     signals={"errors": errors,
+                              "psi": lambda tick: controller.psi,
+                              "stack_s": lambda tick: controller.tick_parts["stack"],
+                              "compensation_s": lambda tick: controller.tick_parts[
+                                  "compensation"]})
+    return sim.run(seconds=seconds, q0=q0, references=lambda t: {"ee": target_at(t)})
+
+
+def series(robot, run) -> dict:
+    """The JSON series of one run, with the quantities the claims use."""
+    every = max(1, int(round(0.1 / run.dt)))  # footprint every 0.1 s
+    out = run.series(["t", "base_velocity", "tick_s", "steer_rate_max",
+                      "steer_acceleration_max", "icr_qp_s", "stack_s", "compensation_s"])
+    errors = run.signals["errors"]
+    out["ee_error"] = errors[:, 0].tolist()
+    out["pose_error_norm"] = errors[:, 1].tolist()
+    psi = run.signals["psi"]
+    out["psi"] = None if np.isnan(psi).all() else psi.tolist()
+    out["base_pose"] = run.q[:, :3].tolist()
+    out["dexterity_distance"] = np.linalg.norm(run.q[:, N_BASE:] - Q_DEX, axis=1).tolist()
+    out["footprint_t"] = run.t[::every].tolist()
+    out["footprint_area"] = [footprint_area(robot, q) for q in run.q[::every]]
+    return out
+
+
+def _intervals(t_end: float):
+    """``(k, start, end)`` of the pose intervals within ``[0, t_end]``."""
+    ends = [s for s, _ in POSES[1:]] + [DURATION]
+    return [(k, s, min(e, t_end)) for k, ((s, _), e) in enumerate(zip(POSES, ends, strict=True))
+            if s < t_end]
+
+
+def per_pose(s: dict, key: str, how: str) -> list[float]:
+    """Per pose interval: ``"auc"`` (∫ key dt), ``"steady"`` (mean over its last
+    ``STEADY_WINDOW`` s) or ``"end"`` (last value)."""
+    t, y = np.asarray(s["t"]), np.asarray(s[key], dtype=float)
+    dt = PARAMETERS["ts"]
+    out = []
+    for _, start, end in _intervals(t[-1] + dt):
+        inside = (t >= start - 1e-9) & (t < end - 1e-9)
+        if how == "auc":
+            out.append(float(y[inside].sum() * dt))
+        elif how == "steady":
+            out.append(float(y[inside & (t >= end - STEADY_WINDOW - 1e-9)].mean()))
+        else:
+            out.append(float(y[inside][-1]))
+    return out
+
+
+def claims(runs: dict) -> list[Claim]:
+    pinv, prop, comp = (runs[v] for v in VARIANTS)
+    rate, accel = PARAMETERS["steer_rate_max"], PARAMETERS["steer_acceleration_max"]
+    out = []
+
+    def window_mean(s, key, t_max=FOOTPRINT_WINDOW, tkey="t"):
+        t, y = np.asarray(s[tkey]), np.asarray(s[key], dtype=float)
+        return float(y[t < t_max].mean())
+
+    far = [0, 4] if len(per_pose(pinv, "pose_error_norm", "auc")) == 5 else [0]
+    auc = {v: per_pose(runs[v], "pose_error_norm", "auc") for v in VARIANTS}
+    faster = all(auc["pinv"][k] < min(auc["proposed"][k], auc["compensated"][k]) for k in far)
+    out.append(Claim(
+        "pinv_faster_far", "the pseudo-inverse (eq. 8) converges faster on the far poses "
+        "(area under ||e_p|| smaller)", "yes (Fig. 6)",
+        {v: [round(auc[v][k], 3) for k in far] for v in VARIANTS}, faster,
+        f"area under the pose-error norm [m·s, rad·s] over the far poses {[k + 1 for k in far]}"))
+    area = {v: window_mean(runs[v], "footprint_area", tkey="footprint_t") for v in VARIANTS}
+    out.append(Claim(
+        "pinv_larger_footprint", "the pseudo-inverse moves with a larger footprint while "
+        "travelling to the first pose", "yes (Fig. 5)", {v: round(a, 3) for v, a in area.items()},
+        area["pinv"] > max(area["proposed"], area["compensated"]),
+        "footprint = area [m²] of the convex hull of the deck outline and the arm's joints 2, 4, "
+        "6, flange and end tip projected on the floor, averaged over the first 20 s"))
+    dex = {v: window_mean(runs[v], "dexterity_distance") for v in VARIANTS}
+    out.append(Claim(
+        "pinv_less_dexterous", "the pseudo-inverse keeps the arm farther from q_dex",
+        "yes (Fig. 5)", {v: round(d, 3) for v, d in dex.items()},
+        dex["pinv"] > max(dex["proposed"], dex["compensated"]),
+        "mean ||q_a − q_dex|| [rad] over the first 20 s"))
+    steady = {v: per_pose(runs[v], "pose_error_norm", "steady") for v in VARIANTS[1:]}
+    out.append(Claim(
+        "compensation_lowers_steady_error", "arm compensation (eq. 14) lowers the steady-state "
+        "error at every pose", "significantly smaller (Fig. 7)",
+        {v: [float(f"{e:.3g}") for e in steady[v]] for v in steady},
+        all(c < p for c, p in zip(steady["compensated"], steady["proposed"], strict=True)),
+        f"mean ||e_p|| over the last {STEADY_WINDOW:g} s of each pose interval"))
+    out.append(Claim(
+        "compensation_lowers_auc", "arm compensation lowers the area under the error curve at "
+        "every pose", "yes (Fig. 6 numbers)",
+        {v: [round(a, 3) for a in auc[v]] for v in VARIANTS[1:]},
+        all(c < p for c, p in zip(auc["compensated"], auc["proposed"], strict=True)),
+        "area under ||e_p|| [m·s, rad·s] per pose interval"))
+    for v in VARIANTS[1:]:
+        end_psi = per_pose(runs[v], "psi", "end")
+        reached = per_pose(runs[v], "ee_error", "end")
+        out.append(Claim(
+            f"psi_one_at_reached_poses_{v}", f"ψ = 1 at every reached pose ({v})", "yes (Fig. 7)",
+            end_psi, all(p == 1.0 for p, e in zip(end_psi, reached, strict=True)
+                         if e <= PARAMETERS["r_fm"]) and all(
+                e <= PARAMETERS["r_fm"] for e in reached),
+            "ψ at the end of each pose interval; a pose counts as reached when its position "
+            f"error is within r_fm; final position errors [m]: {[round(e, 4) for e in reached]}"))
+        t, psi = np.asarray(runs[v]["t"]), np.asarray(runs[v]["psi"])
+        inside = (t >= POSES[1][0]) & (t < POSES[3][0])
+        if inside.any():
+            out.append(Claim(
+                f"psi_one_poses_2_3_{v}", f"ψ = 1 throughout the second and third poses ({v})",
+                "yes (Fig. 7)", float(np.mean(psi[inside] == 1.0)),
+                bool(np.all(psi[inside] == 1.0)), "share of the ticks in [20, 35[ s with ψ = 1"))
+    worst_rate = max(max(runs[v]["steer_rate_max"]) for v in VARIANTS)
+    out.append(Claim(
+        "steer_rate_limit", "steer-rate limits are never exceeded", f"β̇max (ours: {rate} rad/s)",
+        round(worst_rate, 6), worst_rate <= rate * (1 + 1e-4),
+        "max |β̇| [rad/s] over every tick of the three runs (1e-4 relative: the QP's tolerance)"))
+    accels = np.concatenate([runs[v]["steer_acceleration_max"] for v in VARIANTS])
+    over = int(np.sum(accels > accel * (1 + 1e-4)))
+    out.append(Claim(
+        "steer_acceleration_limit", "steer-acceleration limits are never exceeded",
+        f"β̈max (ours: {accel} rad/s²)", {"ticks_over": over, "max": round(float(accels.max()), 3)},
+        over == 0, "ticks above β̈max: the ICR QP keeps the acceleration cones soft (least "
+        "violation) when the four wheels cannot all keep them at once"))
+    return out
+
+
+def timing(robot, states: list, backends, budget_s: float) -> tuple[dict, list[str]]:
+    """Full tick (eq. 9 stack + ICR QP + eq. 14 QP) of the compensated controller per backend,
+    replayed over ``states`` (``(q, target)`` pairs of the daqp run), at most ``budget_s`` of
+    wall time per backend. Returns the timing table and the backends that failed."""
+    return replay_timing(backends, lambda backend: SorourController(robot, "compensated", backend),
+                         states, lambda control, state: control.step(state[0], ee=state[1]),
+                         budget_s, ("icr_qp_median_s", lambda c: c.tick_parts["icr_qp"]))
+
+
+def figures(runs: dict, out_dir: Path) -> list[str]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = []
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    for ax, v in zip(axes, VARIANTS, strict=True):
+        ax.plot(runs[v]["t"], runs[v]["pose_error_norm"], label=v)
+        ax.set_ylabel(f"{v}\n||e_p|| [m, rad]")
+        ax.set_xlabel("time [s]")
+        ax.grid(True)
+        ax.legend(loc="upper right")
+    fig.suptitle("Pose error norm per variant")
+    names.append(save_figure(fig, out_dir / "sorour_error.png"))
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    for v in VARIANTS[1:]:
+        axes[0].plot(runs[v]["t"], runs[v]["pose_error_norm"], label=v)
+        axes[1].plot(runs[v]["t"], runs[v]["psi"], label=v)
+    axes[0].set_ylim(0, 0.3)
+    axes[0].set_ylabel("||e_p|| [m, rad]")
+    axes[0].set_xlabel("time [s]")
+    axes[0].legend()
+    axes[1].set_ylabel("ψ [-]")
+    axes[1].set_xlabel("time [s]")
+    axes[1].legend()
+    fig.suptitle("Task sharing: pose error and ψ")
+    names.append(save_figure(fig, out_dir / "sorour_psi.png"))
+    fig, ax = plt.subplots(figsize=(6, 5))
+    for v in VARIANTS:
+        pose = np.asarray(runs[v]["base_pose"])
+        ax.plot(pose[:, 0], pose[:, 1], label=v)
+    ax.set_xlabel("base x [m]")
+    ax.set_ylabel("base y [m]")
+    ax.set_aspect("equal")
+    ax.set_title("Base path per variant")
+    ax.legend()
+    names.append(save_figure(fig, out_dir / "sorour_base_path.png"))
+    plt.close("all")
+    return names
+
+
+SUMMARY = """\
+**Model.** `mpo700_lwr4`; the arm's initial joint angles are not given: they are solved so that
+the end tip starts at Table II's initial pose (base at the origin, from q_dex). Table I's
+parameters; the pose task is eq. 12's `λ_p ᵇT_w e_p` on the analytic RPY Jacobian
+(`wbc.tasks.RpyPoseTask`, rows `ᵇT_w M_RPY J_w`: an exact first-order loop), ψ from eq. 11
+with eq. 10 read as a mobility (erratum: ψ = 1 moves the arm only), the dexterous posture in
+the exact weighted null-space form. No joint limits (the paper's formulation has none).
+
+**Base.** The commanded base twist goes through Sorour's steering controller
+(`wbc.robots.steerable_control`): ICR of the twist, direct or complementary route (±X of the
+homogeneous ICR), ICR velocity controller (λ = 10 1/s, our choice), next-sample ICR as a QP
+with two cone constraints per steer joint (rates hard, accelerations soft), drive controller
+(K_p = 2) projected on the next ICR's twist and scaled into the MPO700's twist limits
+(0.9 m/s, 0.9 m/s, 1 rad/s), wheel rates by the inverse actuation model. The base moves at that
+feasible twist. The base reference q̇_ref(b) of eq. 9 is scaled uniformly into the same limits
+before it reaches the base controller and eq. 14 (our decision: at gross motion eq. 12 asks
+for up to 1.7 × 5 m/s, and eq. 14 would hand the unreachable remainder to the arm).
+β̇max = 1 rad/s and β̈max = 3 rad/s² are estimates (no data
+sheet values available offline).
+
+**Claims.** Every number is computed from the runs; footprint and dexterity are defined in the
+claims' notes. The paper gives its per-pose areas only in a figure (not in the text): we
+compare the variants with each other, not with the paper's numbers.
+"""
+
+
+def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
+    robot = load("mpo700_lwr4")
+    q0 = initial_configuration(robot)
+    seconds = 10.0 if quick else DURATION
+    runs, states = {}, []
+    for v in VARIANTS:
+        simulated = simulate(robot, v, backend, q0, seconds)
+        runs[v] = series(robot, simulated)
+        if v == "compensated":
+            every = max(1, len(simulated.t) // 200)
+            states = [(q, target_at(t)) for q, t in zip(simulated.q[::every],
+                                                        simulated.t[::every], strict=True)]
+    backends = [backend] if quick else available_backends()
+    timings, failures = timing(robot, states, backends, 0.5 if quick else 2.0)
+    icr_table = "\n".join(
+        ["", "ICR QP alone (median over the replayed ticks):", "",
+         "| backend | ICR QP median [µs] |", "|---|---:|"]
+        + [f"| {b} | {1e6 * t['icr_qp_median_s']:.0f} |" for b, t in timings.items()])
+    return StudyResult(
+        name="sorour", claims=claims(runs), runs={"table_ii": runs}, timing=timings,
+        figures=figures(runs, Path(out_dir)), summary_md=SUMMARY + icr_table,
+        failures=failures,
+        parameters={**PARAMETERS, "q_dex": Q_DEX.tolist(), "initial_pose": INITIAL_POSE.tolist(),
+                    "poses": [[s, list(p)] for s, p in POSES], "duration_s": seconds,
+                    "q0": q0.tolist(), "backend": backend})
+
+
+def main(argv=None) -> int:
+    return study_main("sorour", run, argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
