@@ -82,14 +82,40 @@ __all__ = [
     "ur5",
     "urdf_path",
 ]
-from .steerable_control import SteerableController, SteerableDrive  # noqa: E402
-
-__all__ += ["SteerableController", "SteerableDrive"]
 from .omni import ARM_MASS, PLATFORM_MASS, normal_forces, system_com  # noqa: E402
 
 __all__ += ["ARM_MASS", "PLATFORM_MASS", "normal_forces", "system_com"]
-from .omni_control import OmniForceControl, OmniPositionControl, platform_error  # noqa: E402
-from .omni_dynamics import OmniDynamics, coulomb_forces  # noqa: E402
 
-__all__ += ["OmniDynamics", "OmniForceControl", "OmniPositionControl", "coulomb_forces",
-            "platform_error"]
+#: The papers' controllers and plants, kept here under their old names for compatibility: each
+#: is imported from its paper's package (``wbc.papers.<paper>``) on first access (PEP 562), so
+#: that ``import wbc.robots`` loads no paper, controller, backend or simulator — robot models
+#: import only the core.
+_MOVED = {
+    **dict.fromkeys(["SteerableController", "SteerableDrive"], "wbc.papers.sorour.steering"),
+    **dict.fromkeys(["OmniForceControl", "OmniPositionControl", "platform_error"],
+                    "wbc.papers.omni.control"),
+    **dict.fromkeys(["OmniDynamics", "coulomb_forces"], "wbc.papers.omni.dynamics"),
+}
+__all__ += list(_MOVED)
+#: the modules that moved to the papers (aliases kept in this folder), as attributes
+_MOVED_MODULES = ('steerable_control', 'omni_control', 'omni_dynamics')
+
+
+def __getattr__(name: str):
+    """A paper's controller or plant under its old name (see :data:`_MOVED`), imported on first
+    access."""
+    if name in _MOVED:
+        import importlib
+
+        value = getattr(importlib.import_module(_MOVED[name]), name)
+        globals()[name] = value  # later accesses skip this function
+        return value
+    if name in _MOVED_MODULES:  # ``wbc.<package>.<old module>`` without importing it first
+        import importlib
+
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_MOVED))

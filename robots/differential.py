@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .planar_base import UNICYCLE_MAP, PlanarBase, as_vector, require_positive
+from wbc.checks import checked_number, checked_vector
+
+from .planar_base import UNICYCLE_MAP, PlanarBase
 
 __all__ = ["DifferentialDriveBase", "tiago_base"]
 
@@ -49,7 +51,8 @@ class DifferentialDriveBase(PlanarBase):
         v_max,
         a_max,
     ) -> None:
-        require_positive(separation=separation, radius=radius)
+        separation = checked_number(separation, "separation", strict=True)
+        radius = checked_number(radius, "radius", strict=True)
         self.separation = float(separation)
         self.radius = float(radius)
         super().__init__(name, mass, com, inertia, v_max, a_max)
@@ -61,11 +64,11 @@ class DifferentialDriveBase(PlanarBase):
 
     def inverse(self, base_velocity) -> np.ndarray:
         """Wheel rates ``(φ̇_left, φ̇_right)`` [rad/s] for ``(v [m/s], ω [rad/s])``."""
-        return self.jacobian @ as_vector(base_velocity, 2, "base_velocity")
+        return self.jacobian @ checked_vector(base_velocity, 2, "base_velocity", broadcast=False)
 
     def forward(self, wheel_rates) -> np.ndarray:
         """``(v [m/s], ω [rad/s])`` from wheel rates ``(φ̇_left, φ̇_right)`` [rad/s]."""
-        left, right = as_vector(wheel_rates, 2, "wheel_rates")
+        left, right = checked_vector(wheel_rates, 2, "wheel_rates", broadcast=False)
         return np.array(
             [0.5 * self.radius * (right + left), self.radius * (right - left) / self.separation]
         )

@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, box_inertia, require_positive
+from wbc.checks import checked_number, checked_vector
+
+from .planar_base import HOLONOMIC_MAP, PlanarBase, box_inertia
 
 __all__ = ["MecanumBase", "mecanum_base"]
 
@@ -57,7 +59,9 @@ class MecanumBase(PlanarBase):
         v_max,
         a_max,
     ) -> None:
-        require_positive(radius=radius, half_wheelbase=half_wheelbase, half_track=half_track)
+        radius = checked_number(radius, "radius", strict=True)
+        half_wheelbase = checked_number(half_wheelbase, "half_wheelbase", strict=True)
+        half_track = checked_number(half_track, "half_track", strict=True)
         self.radius = float(radius)
         self.half_wheelbase = float(half_wheelbase)
         self.half_track = float(half_track)
@@ -76,11 +80,11 @@ class MecanumBase(PlanarBase):
 
     def inverse(self, base_velocity) -> np.ndarray:
         """Wheel rates [rad/s] (FL, FR, RL, RR) for the body twist (base frame)."""
-        return self.jacobian @ as_vector(base_velocity, 3, "base_velocity")
+        return self.jacobian @ checked_vector(base_velocity, 3, "base_velocity", broadcast=False)
 
     def forward(self, wheel_rates) -> np.ndarray:
         """Body twist from wheel rates (least squares, exact for consistent rates)."""
-        return self._jacobian_pinv @ as_vector(wheel_rates, 4, "wheel_rates")
+        return self._jacobian_pinv @ checked_vector(wheel_rates, 4, "wheel_rates", broadcast=False)
 
 
 def mecanum_base() -> MecanumBase:

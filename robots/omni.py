@@ -32,14 +32,13 @@ import weakref
 import numpy as np
 import pinocchio as pin
 
+from wbc.checks import checked_number, checked_vector
 from wbc.errors import InvalidValueError, ShapeError
 
 from .planar_base import (
     HOLONOMIC_MAP,
     PlanarBase,
-    as_vector,
     cylinder_inertia,
-    require_positive,
 )
 
 __all__ = ["ARM_MASS", "PLATFORM_MASS", "OmniBase", "normal_forces", "omni4_octagon",
@@ -87,7 +86,8 @@ class OmniBase(PlanarBase):
         if self.angles.ndim != 1 or self.angles.size < 3:
             raise InvalidValueError(
                 f"an omni base needs at least 3 wheel angles, got {self.angles}")
-        require_positive(distance=distance, radius=radius)
+        distance = checked_number(distance, "distance", strict=True)
+        radius = checked_number(radius, "radius", strict=True)
         self.distance = float(distance)
         self.radius = float(radius)
         super().__init__(name, mass, com, inertia, v_max, a_max)
@@ -106,15 +106,17 @@ class OmniBase(PlanarBase):
 
     def inverse(self, base_velocity) -> np.ndarray:
         """Wheel rates ``J ξ`` [rad/s] for the body twist ξ (base frame)."""
-        return self.jacobian @ as_vector(base_velocity, 3, "base_velocity")
+        return self.jacobian @ checked_vector(base_velocity, 3, "base_velocity", broadcast=False)
 
     def forward(self, wheel_rates) -> np.ndarray:
         """Body twist ``J⁺ θ̇`` (least squares, exact for consistent wheel rates)."""
-        return self._jacobian_pinv @ as_vector(wheel_rates, self.n_wheels, "wheel_rates")
+        rates = checked_vector(wheel_rates, self.n_wheels, "wheel_rates", broadcast=False)
+        return self._jacobian_pinv @ rates
 
     def wrench(self, wheel_torques) -> np.ndarray:
         """Base wrench ``Jᵀ τ``: force (f_x, f_y) [N] in the base frame and torque [N m]."""
-        return self.jacobian.T @ as_vector(wheel_torques, self.n_wheels, "wheel_torques")
+        torques = checked_vector(wheel_torques, self.n_wheels, "wheel_torques", broadcast=False)
+        return self.jacobian.T @ torques
 
 
 def omni4_octagon() -> OmniBase:
@@ -177,8 +179,8 @@ def normal_forces(wheel_xy, com_xy, mass: float, g: float = GRAVITY) -> np.ndarr
     com = np.asarray(com_xy, dtype=float)
     if com.shape not in ((2,), (3,)):
         raise ShapeError(f"com_xy must have shape (2,) (or (3,)), got {com.shape}")
-    as_vector(wheel_xy.ravel(), wheel_xy.size, "wheel_xy")
-    com = as_vector(com[:2], 2, "com_xy")
+    checked_vector(wheel_xy.ravel(), wheel_xy.size, "wheel_xy", broadcast=False)
+    com = checked_vector(com[:2], 2, "com_xy", broadcast=False)
     if not (np.isfinite(mass) and mass > 0):
         raise InvalidValueError(f"mass must be a positive number [kg], got {mass!r}")
     if not (np.isfinite(g) and g > 0):
@@ -221,7 +223,7 @@ def system_com(robot, q, frame: str = "world") -> tuple[float, np.ndarray]:
     """
     if frame not in ("world", "base"):
         raise InvalidValueError(f"frame must be 'world' or 'base', got {frame!r}")
-    q = as_vector(q, robot.nq, "q")
+    q = checked_vector(q, robot.nq, "q", broadcast=False)
     arm = robot.arm.model
     data = _ARM_DATA.get(robot)
     if data is None:

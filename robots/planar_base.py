@@ -25,9 +25,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 import pinocchio as pin
 
-from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
-
-__all__ = ["PlanarBase", "as_vector", "HOLONOMIC_MAP", "UNICYCLE_MAP"]
+__all__ = ["PlanarBase", "HOLONOMIC_MAP", "UNICYCLE_MAP"]
 
 #: body map ``B`` of holonomic bases: the velocity coordinates are the body twist.
 HOLONOMIC_MAP = np.eye(3)
@@ -35,24 +33,6 @@ HOLONOMIC_MAP.setflags(write=False)
 #: body map ``B`` of the differential drive: ``(v, ω) -> (v, 0, ω)``.
 UNICYCLE_MAP = np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
 UNICYCLE_MAP.setflags(write=False)
-
-
-def as_vector(value, size: int, name: str) -> np.ndarray:
-    """Return ``value`` as a finite float vector of the given size, or raise a clear error."""
-    array = np.asarray(value, dtype=float)
-    if array.shape != (size,):
-        raise ShapeError(f"{name} must have shape ({size},), got {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise NonFiniteError(f"{name} holds NaN or inf: {array}")
-    return array
-
-
-def require_positive(**lengths: float) -> None:
-    """Raise :class:`~wbc.InvalidValueError` naming every given length [m] that is not > 0
-    (wheel radii, track widths, offsets of a base's geometry)."""
-    bad = [f"{name} = {value}" for name, value in lengths.items() if not value > 0.0]
-    if bad:
-        raise InvalidValueError(f"{', '.join(lengths)} must be positive, got {', '.join(bad)}")
 
 
 class PlanarBase(ABC):

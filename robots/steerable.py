@@ -33,9 +33,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from wbc.checks import checked_number, checked_vector
 from wbc.errors import InvalidValueError, ShapeError
 
-from .planar_base import HOLONOMIC_MAP, PlanarBase, as_vector, box_inertia, require_positive
+from .planar_base import HOLONOMIC_MAP, PlanarBase, box_inertia
 
 __all__ = ["SteerableBase", "SteerableRates", "mpo700"]
 
@@ -85,7 +86,8 @@ class SteerableBase(PlanarBase):
         hips = np.array(hips, dtype=float)
         if hips.ndim != 2 or hips.shape[1] != 2 or hips.shape[0] < 2:
             raise ShapeError(f"hips must have shape (N, 2) with N >= 2, got {hips.shape}")
-        require_positive(offset=offset, radius=radius)
+        offset = checked_number(offset, "offset", strict=True)
+        radius = checked_number(radius, "radius", strict=True)
         self.hips = hips
         self.offset = float(offset)
         self.radius = float(radius)
@@ -98,7 +100,7 @@ class SteerableBase(PlanarBase):
 
     # ------------------------------------------------------------------ geometry
     def _steering(self, steering) -> np.ndarray:
-        return as_vector(steering, self.n_wheels, "steering")
+        return checked_vector(steering, self.n_wheels, "steering", broadcast=False)
 
     def contact_points(self, steering) -> np.ndarray:
         """Ground contact points ``c_i = h_i − d e(β_i)`` [m] in the base frame, shape (N, 2)."""
@@ -129,7 +131,7 @@ class SteerableBase(PlanarBase):
         Returns:
             :class:`SteerableRates` ``(β̇, φ̇)`` [rad/s].
         """
-        twist = as_vector(base_velocity, 3, "base_velocity")
+        twist = checked_vector(base_velocity, 3, "base_velocity", broadcast=False)
         rolling, lateral = self.no_slip_matrices(steering)
         return SteerableRates(lateral @ twist / self.offset, rolling @ twist / self.radius)
 
@@ -144,8 +146,8 @@ class SteerableBase(PlanarBase):
         Returns:
             ``(v_x [m/s], v_y [m/s], ω [rad/s])`` in the base frame.
         """
-        phi_dot = as_vector(drive_rates, self.n_wheels, "drive_rates")
-        beta_dot = as_vector(steer_rates, self.n_wheels, "steer_rates")
+        phi_dot = checked_vector(drive_rates, self.n_wheels, "drive_rates", broadcast=False)
+        beta_dot = checked_vector(steer_rates, self.n_wheels, "steer_rates", broadcast=False)
         rolling, lateral = self.no_slip_matrices(steering)
         a = np.vstack([rolling, lateral])
         b = np.concatenate([self.radius * phi_dot, self.offset * beta_dot])
@@ -157,9 +159,9 @@ class SteerableBase(PlanarBase):
         Computed geometrically from the rigid motion of the base and the steering rates:
         ``ċ_i = v + ω ẑ × c_i − d β̇_i ẑ × e_i``. Under no slip it is ``r_w φ̇_i e_i``.
         """
-        vx, vy, omega = as_vector(base_velocity, 3, "base_velocity")
+        vx, vy, omega = checked_vector(base_velocity, 3, "base_velocity", broadcast=False)
         beta = self._steering(steering)
-        beta_dot = as_vector(steer_rates, self.n_wheels, "steer_rates")
+        beta_dot = checked_vector(steer_rates, self.n_wheels, "steer_rates", broadcast=False)
         c = self.contact_points(beta)
         e_perp = np.column_stack([-np.sin(beta), np.cos(beta)])
         rigid = np.column_stack([vx - omega * c[:, 1], vy + omega * c[:, 0]])
@@ -178,7 +180,7 @@ class SteerableBase(PlanarBase):
             The point ``(−v_y/ω, v_x/ω)`` [m] in the base frame (``inf`` entries when ω = 0), or
             the unit 3-vector. A zero twist has no ICR: ``ValueError``.
         """
-        vx, vy, omega = as_vector(base_velocity, 3, "base_velocity")
+        vx, vy, omega = checked_vector(base_velocity, 3, "base_velocity", broadcast=False)
         h = np.array([-vy, vx, omega])
         norm = float(np.linalg.norm(h))
         if norm == 0.0:
@@ -232,7 +234,7 @@ class SteerableBase(PlanarBase):
         Returns:
             Steering angles [rad], shape (N,).
         """
-        vx, vy, omega = as_vector(base_velocity, 3, "base_velocity")
+        vx, vy, omega = checked_vector(base_velocity, 3, "base_velocity", broadcast=False)
         if current is not None:
             current = self._steering(current)
         hip_v = np.column_stack([vx - omega * self.hips[:, 1], vy + omega * self.hips[:, 0]])
@@ -255,7 +257,7 @@ class SteerableBase(PlanarBase):
 
         Same as :meth:`steering_for_twist` for the twist direction ``(X₂, −X₁, X₃)``.
         """
-        x = as_vector(icr, 3, "icr")
+        x = checked_vector(icr, 3, "icr", broadcast=False)
         return self.steering_for_twist(np.array([x[1], -x[0], x[2]]), current)
 
 

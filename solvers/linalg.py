@@ -1,5 +1,6 @@
-r"""Linear algebra shared by the closed forms of :mod:`wbc.solvers.reference`: input checks,
-SVD-based pseudo-inverses and null-space projectors (plain numpy, float64 in and out).
+r"""Linear algebra shared by the closed forms of :mod:`wbc.solvers.reference`: SVD-based
+pseudo-inverses and null-space projectors (plain numpy, float64 in and out; the arguments are
+checked with :mod:`wbc.checks`).
 
 * :func:`pinv` -- truncated-SVD Moore-Penrose pseudo-inverse ``J⁺``.
 * :func:`damped_pinv` -- damped least squares ``Jᵀ(JJᵀ + ρ²I)⁻¹``.
@@ -18,7 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from wbc.errors import BoundsOrderError, InvalidValueError, NonFiniteError, ShapeError
+from wbc.checks import checked_2d, checked_scalar
+from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
 
 __all__ = [
     "DEFAULT_TOL",
@@ -36,65 +38,6 @@ DERIVED_RTOL = 1e-10
 """Default relative cutoff for pseudo-inverses of derived matrices (hierarchy, SNS)."""
 
 _EPS = np.finfo(np.float64).eps
-
-
-# --------------------------------------------------------------------------------------------
-# input checking
-# --------------------------------------------------------------------------------------------
-
-
-def _matrix(J, name: str = "J") -> np.ndarray:
-    J = np.asarray(J, dtype=np.float64)
-    if J.ndim != 2:
-        raise ShapeError(f"{name} must be a 2-D array (m, n), got shape {J.shape}")
-    if not np.all(np.isfinite(J)):
-        raise NonFiniteError(f"{name} holds NaN or inf")
-    return J
-
-
-def _vector(v, size: int, name: str) -> np.ndarray:
-    v = np.asarray(v, dtype=np.float64)
-    if v.shape != (size,):
-        raise ShapeError(f"{name} must have shape ({size},), got {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise NonFiniteError(f"{name} holds NaN or inf")
-    return v
-
-
-def _nonneg_scalar(x, name: str) -> float:
-    arr = np.asarray(x, dtype=np.float64)
-    if arr.shape != ():
-        raise ShapeError(f"{name} must be a scalar, got shape {arr.shape}")
-    x = float(arr)
-    if not np.isfinite(x):
-        raise NonFiniteError(f"{name} must be finite, got {x}")
-    if x < 0.0:
-        raise InvalidValueError(f"{name} must be >= 0, got {x}")
-    return x
-
-
-def _bounds(lower, upper, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds of shape (n,) (scalars broadcast); ±inf means "no bound", NaN is refused."""
-    out = []
-    for name, b in (("lower", lower), ("upper", upper)):
-        b = np.asarray(b, dtype=np.float64)
-        if b.ndim == 0:
-            b = np.full(n, float(b))
-        if b.shape != (n,):
-            raise ShapeError(f"{name} must have shape ({n},) or be a scalar, got {b.shape}")
-        if np.any(np.isnan(b)):
-            raise NonFiniteError(f"{name} holds NaN")
-        out.append(b.copy())
-    lo, up = out
-    if np.any(lo == np.inf) or np.any(up == -np.inf):
-        raise NonFiniteError("a lower bound is +inf or an upper bound is -inf")
-    bad = np.flatnonzero(lo > up)
-    if bad.size:
-        i = int(bad[0])
-        raise BoundsOrderError(
-            f"lower > upper at index {i} (lower={lo[i]}, upper={up[i]}); {bad.size} such entries"
-        )
-    return lo, up
 
 
 # --------------------------------------------------------------------------------------------
@@ -152,7 +95,7 @@ def pinv(J, tol: float | None = None, rtol: float | None = None) -> np.ndarray:
         ``J⁺``, shape ``(n, m)``. ``x = J⁺ v`` is the minimum-norm least-squares solution of
         ``J x ≈ v``.
     """
-    J = _matrix(J)
+    J = checked_2d(J, "J")
     U, s, Vt = _svd(J)
     c = _cutoff(s[0] if s.size else 0.0, J.shape, tol, rtol)
     return _pinv_svd(U, s, Vt, c)
@@ -173,8 +116,8 @@ def damped_pinv(J, rho: float, tol: float | None = None, rtol: float | None = No
     Returns:
         ``J^#``, shape ``(n, m)``.
     """
-    J = _matrix(J)
-    rho = _nonneg_scalar(rho, "rho")
+    J = checked_2d(J, "J")
+    rho = checked_scalar(rho, "rho")
     if rho == 0.0:
         return pinv(J, tol=tol, rtol=rtol)
     return _damped_svd(*_svd(J), rho)
@@ -236,8 +179,8 @@ def weighted_damped_pinv(
     Returns:
         ``J^#_M``, shape ``(n, m)``.
     """
-    J = _matrix(J)
-    rho = _nonneg_scalar(rho, "rho")
+    J = checked_2d(J, "J")
+    rho = checked_scalar(rho, "rho")
     S = _mobility_sqrt(mobility, J.shape[1])
     return S @ damped_pinv(J @ S, rho, tol=tol, rtol=rtol)
 
@@ -252,7 +195,7 @@ def nullspace_projector(J, tol: float | None = None, rtol: float | None = None) 
     Returns:
         ``N``, shape ``(n, n)``; the identity for a matrix with no rows.
     """
-    J = _matrix(J)
+    J = checked_2d(J, "J")
     m, n = J.shape
     if m == 0 or n == 0:
         return np.eye(n)

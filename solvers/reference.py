@@ -37,9 +37,12 @@ bounds that do not contain 0), and ``ValueError`` for values outside a parameter
 Modules
 -------
 This module is the catalogue: it re-exports the shared linear algebra
-(:mod:`wbc.solvers.linalg`), SNS (:mod:`wbc.solvers.sns`) and each paper's closed forms
-(``reference_xing``, ``reference_sorour``, ``reference_omni``, ``reference_petric``,
-``reference_petric_arm``), which import from the first two only: imports point one way.
+(:mod:`wbc.solvers.linalg`), SNS (:mod:`wbc.solvers.sns`) and each paper's closed forms, which
+live in the paper's package (``wbc.papers.xing.closed_form``, ``wbc.papers.sorour.closed_form``,
+``wbc.papers.omni.closed_form``, ``wbc.papers.petric.closed_form`` and ``closed_form_arm``)
+and import from the first two only: imports point one way. The papers' names are imported on
+first access (PEP 562), so ``import wbc.solvers.reference`` loads no paper; the old modules
+``wbc.solvers.reference_<paper>`` are aliases of the new ones.
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ from typing import cast
 
 import numpy as np
 
+from wbc.checks import checked_2d, checked_scalar, checked_vector
 from wbc.errors import ShapeError
 
 from .linalg import (
@@ -57,46 +61,12 @@ from .linalg import (
     DERIVED_RTOL,
     _cutoff,
     _damped_svd,
-    _matrix,
-    _nonneg_scalar,
     _pinv_svd,
     _svd,
-    _vector,
     damped_pinv,
     nullspace_projector,
     pinv,
     weighted_damped_pinv,
-)
-from .reference_omni import (
-    DISTRIBUTION_METHODS,
-    friction_utilisation,
-    torque_distribution,
-    torque_null_space,
-)
-from .reference_petric import rate_limit_interval, rate_limited_twist
-from .reference_petric_arm import (
-    PETRIC_LAMBDA,
-    damped_projector,
-    dls_arm_velocity,
-    projector_leak,
-)
-from .reference_sorour import (
-    arm_compensation,
-    sharing_mobility,
-    task_sharing_factor,
-    task_sharing_velocity,
-)
-from .reference_xing import (
-    AMPInfo,
-    amp,
-    auxiliary_projector,
-    base_transition,
-    manipulability_acceleration,
-    manipulability_gradient,
-    manipulability_hessian,
-    manipulability_hessian_product,
-    scaling_factor,
-    traditional,
 )
 from .sns import SNSInfo, sns_acceleration, sns_velocity
 
@@ -113,35 +83,7 @@ __all__ = [
     "sns_acceleration",
     "sns_velocity",
     "weighted_damped_pinv",
-    # Xing et al.
-    "AMPInfo",
-    "amp",
-    "auxiliary_projector",
-    "base_transition",
-    "manipulability_acceleration",
-    "manipulability_gradient",
-    "manipulability_hessian",
-    "manipulability_hessian_product",
-    "scaling_factor",
-    "traditional",
-    # Sorour et al.
-    "arm_compensation",
-    "sharing_mobility",
-    "task_sharing_factor",
-    "task_sharing_velocity",
-    # omnidirectional base
-    "DISTRIBUTION_METHODS",
-    "friction_utilisation",
-    "torque_distribution",
-    "torque_null_space",
-    # Petric et al.
-    "PETRIC_LAMBDA",
-    "damped_projector",
-    "dls_arm_velocity",
-    "projector_leak",
-    "rate_limit_interval",
-    "rate_limited_twist",
-]
+]  # + each paper's closed forms (_MOVED, at the end: imported on first access)
 
 
 # --------------------------------------------------------------------------------------------
@@ -217,20 +159,20 @@ def hierarchy(
             Jk, vk = lvl
         except (TypeError, ValueError):
             raise ShapeError(f"level {k} must be a pair (J, v)") from None
-        Jk = _matrix(Jk, f"J of level {k}")
+        Jk = checked_2d(Jk, f"J of level {k}")
         if k == 0:
             n = Jk.shape[1]
         if Jk.shape[1] != n:
             raise ShapeError(f"J of level {k} has {Jk.shape[1]} columns, level 0 has {n}")
         Js.append(Jk)
-        vs.append(_vector(vk, Jk.shape[0], f"v of level {k}"))
+        vs.append(checked_vector(vk, Jk.shape[0], f"v of level {k}", broadcast=False))
     if np.ndim(rho) == 0:
-        rhos = [_nonneg_scalar(rho, "rho")] * len(levels)
+        rhos = [checked_scalar(rho, "rho")] * len(levels)
     else:
         rho = cast(Sequence[float], rho)  # not a scalar: one per level
         if len(rho) != len(levels):
             raise ShapeError(f"rho has {len(rho)} entries for {len(levels)} levels")
-        rhos = [_nonneg_scalar(r, f"rho[{k}]") for k, r in enumerate(rho)]
+        rhos = [checked_scalar(r, f"rho[{k}]") for k, r in enumerate(rho)]
     rtol = DERIVED_RTOL if rtol is None else float(rtol)
 
     x = np.zeros(n)
@@ -261,3 +203,41 @@ def hierarchy(
         for xk, Nk, r, Jk, vk in zip(xs, Ns, ranks, Js, vs, strict=True)
     ]
     return x, info
+
+
+# --------------------------------------------------------------------------------------------
+# the papers' closed forms, imported on first access
+# --------------------------------------------------------------------------------------------
+
+_PAPERS = {
+    "AMPInfo": "xing", "amp": "xing", "auxiliary_projector": "xing", "base_transition": "xing",
+    "manipulability_acceleration": "xing", "manipulability_gradient": "xing",
+    "manipulability_hessian": "xing", "manipulability_hessian_product": "xing",
+    "scaling_factor": "xing", "traditional": "xing",
+    "arm_compensation": "sorour", "sharing_mobility": "sorour", "task_sharing_factor": "sorour",
+    "task_sharing_velocity": "sorour",
+    "DISTRIBUTION_METHODS": "omni", "friction_utilisation": "omni",
+    "torque_distribution": "omni", "torque_null_space": "omni",
+    "PETRIC_LAMBDA": "petric.closed_form_arm", "damped_projector": "petric.closed_form_arm",
+    "dls_arm_velocity": "petric.closed_form_arm", "projector_leak": "petric.closed_form_arm",
+    "rate_limit_interval": "petric", "rate_limited_twist": "petric",
+}
+#: ``name -> module`` of each paper's closed form re-exported here
+_MOVED = {name: f"wbc.papers.{where}" if where.endswith("_arm") else
+          f"wbc.papers.{where}.closed_form" for name, where in _PAPERS.items()}
+__all__ += list(_MOVED)
+
+
+def __getattr__(name: str):
+    """A paper's closed form (see :data:`_MOVED`), imported from its paper on first access."""
+    if name in _MOVED:
+        import importlib
+
+        value = getattr(importlib.import_module(_MOVED[name]), name)
+        globals()[name] = value  # later accesses skip this function
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_MOVED))

@@ -1,81 +1,15 @@
-r"""Closed form of Petrič & Žlajpah's two-stage rate limiter (eqs. 16–18).
+"""Alias: the old path of :mod:`wbc.papers.petric.closed_form`, kept for compatibility.
 
-The smoothed base command ``û_k`` (eqs. 14–15) is limited against the previous applied command
-``u_{k−1}`` per component: first its change, then its value,
-
-    ũ_k = ψ_{u_max}(u_{k−1} + ψ_{Δu_max}(û_k − u_{k−1})),      ψ_r(x) = clip(x, −r, r).
-
-docs/DESIGN.md, math note 5: for 1-D intervals with a common point, clipping into one interval
-and then into the other is the projection onto their intersection, so eqs. 16–17 are the QP
-
-    min ½||u − û_k||²   s.t.   lower ≤ u ≤ upper,
-    lower = clip(u_{k−1} − Δu_max, −u_max, u_max),   upper = clip(u_{k−1} + Δu_max, −u_max, u_max).
-
-Clipping the rate interval's ends into ``[−u_max, u_max]`` keeps the QP feasible — and equal to
-the two-stage clip — when the intervals do not meet (``|u_{k−1}| > u_max + Δu_max``, which the
-field never produces since its ``u_{k−1}`` is itself saturated): then both give ``±u_max``.
-This is the oracle of :meth:`wbc.tasks.VelocityField.rate_limit_level` and the limiter that
-:meth:`wbc.tasks.VelocityField.step` applies.
-
-Units follow the command: ``(v [m/s], ω [rad/s])``; the rate limits are changes per control
-tick (``[m/s]``, ``[rad/s]`` per tick), as eqs. 16–17 print them.
+Each paper's library pieces live in its own package under ``wbc.papers`` (issue #22). This
+module, kept so that existing imports keep working, makes the old name
+``wbc.solvers.reference_petric`` refer to the moved module itself (the same object in
+``sys.modules``: its private names and monkeypatching work through either name). New code
+imports ``wbc.papers.petric.closed_form``. Nothing imports this module at ``import
+wbc.solvers``: only an explicit import of the old path loads the paper.
 """
 
-from __future__ import annotations
+import sys
 
-import numpy as np
+from wbc.papers.petric import closed_form as _moved
 
-from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
-
-__all__ = ["rate_limit_interval", "rate_limited_twist"]
-
-
-def _checked(value, size: int, name: str, positive: bool = False) -> np.ndarray:
-    """``value`` as a finite ``(size,)`` array (a scalar is broadcast)."""
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 0:
-        arr = np.full(size, float(arr))
-    if arr.shape != (size,):
-        raise ShapeError(f"{name} must be a scalar or have shape ({size},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise NonFiniteError(f"{name} holds NaN or inf")
-    if positive and np.any(arr <= 0.0):
-        raise InvalidValueError(f"{name} must be > 0, got {arr}")
-    return arr
-
-
-def _prepare(target, previous, limit, rate_limit):
-    target = np.asarray(target, dtype=np.float64)
-    if target.ndim != 1:
-        raise ShapeError(f"target must be a vector, got shape {target.shape}")
-    n = target.shape[0]
-    return (_checked(target, n, "target"), _checked(previous, n, "previous"),
-            _checked(limit, n, "limit", positive=True),
-            _checked(rate_limit, n, "rate_limit", positive=True))
-
-
-def rate_limited_twist(target, previous, limit, rate_limit) -> np.ndarray:
-    """Eqs. 16–17: ``clip(previous + clip(target − previous, ±rate_limit), ±limit)``.
-
-    Args:
-        target: ``(n,)`` smoothed command ``û_k`` (for the base ``(v̂ [m/s], ω̂ [rad/s])``).
-        previous: ``(n,)`` command applied at the previous tick ``u_{k−1}`` (or a scalar).
-        limit: ``u_max > 0``, scalar or ``(n,)`` (``(v_max, ω_max)``).
-        rate_limit: ``Δu_max > 0`` per tick, scalar or ``(n,)`` (``(Δv_max, Δω_max)``).
-
-    Returns:
-        ``(n,)`` limited command ``ũ_k``.
-    """
-    target, previous, limit, rate = _prepare(target, previous, limit, rate_limit)
-    return np.clip(previous + np.clip(target - previous, -rate, rate), -limit, limit)
-
-
-def rate_limit_interval(previous, limit, rate_limit) -> tuple[np.ndarray, np.ndarray]:
-    """The QP's bounds ``(lower, upper)``, each ``(n,)``: the rate interval around ``previous``
-    with its ends clipped into ``[−limit, limit]`` (see the module docstring).
-
-    Args: as :func:`rate_limited_twist` (``previous`` must be a vector here).
-    """
-    previous = np.asarray(previous, dtype=np.float64)
-    _, previous, limit, rate = _prepare(previous, previous, limit, rate_limit)
-    return (np.clip(previous - rate, -limit, limit), np.clip(previous + rate, -limit, limit))
+sys.modules[__name__] = _moved

@@ -1,6 +1,6 @@
 r"""Saturation in the Null Space (SNS; Flacco, De Luca, Khatib, ICRA 2012 / IEEE T-RO 2015),
 single task, with task scaling: :func:`sns_velocity`, :func:`sns_acceleration`, and the core
-:func:`_sns` that :mod:`wbc.solvers.reference_xing` builds on. Plain numpy; tolerances and
+:func:`_sns` that :mod:`wbc.papers.xing.closed_form` builds on. Plain numpy; tolerances and
 errors as in :mod:`wbc.solvers.linalg`. Re-exported by :mod:`wbc.solvers.reference`.
 """
 
@@ -10,10 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wbc.checks import checked_2d, checked_bounds, checked_vector
 from wbc.errors import BoundsOrderError
 from wbc.qp import Status
 
-from .linalg import DERIVED_RTOL, _bounds, _cutoff, _matrix, _pinv_svd, _svd, _vector
+from .linalg import DERIVED_RTOL, _cutoff, _pinv_svd, _svd
 
 __all__ = ["SNSInfo", "sns_acceleration", "sns_velocity"]
 
@@ -132,8 +133,8 @@ def _sns(J, task, offset, lower, upper, tol, rtol, feas_tol):
 
 
 def _sns_prepare(J, target, name):
-    J = _matrix(J)
-    target = _vector(target, J.shape[0], name)
+    J = checked_2d(J, "J")
+    target = checked_vector(target, J.shape[0], name, broadcast=False)
     return J, target
 
 
@@ -191,7 +192,7 @@ def sns_velocity(
         BoundsOrderError: ``lower > upper`` somewhere, or a bound excludes 0.
     """
     J, xd = _sns_prepare(J, xd, "xd")
-    lower, upper = _bounds(lower, upper, J.shape[1])
+    lower, upper = checked_bounds(lower, upper, J.shape[1], "bounds")
     bad = np.flatnonzero((lower > 0) | (upper < 0))
     if bad.size:
         i = int(bad[0])
@@ -253,8 +254,8 @@ def sns_acceleration(
         ``(qdd, scale)``, or ``(qdd, scale, info)`` with ``return_info``.
     """
     J, xdd = _sns_prepare(J, xdd, "xdd")
-    drift = _vector(drift, J.shape[0], "drift")
-    lower, upper = _bounds(lower, upper, J.shape[1])
+    drift = checked_vector(drift, J.shape[0], "drift", broadcast=False)
+    lower, upper = checked_bounds(lower, upper, J.shape[1], "bounds")
     q, s, sat, it = _sns(J, xdd, -drift, lower, upper, tol, rtol, feas_tol)
     if q is not None:
         q = np.clip(q, lower, upper)

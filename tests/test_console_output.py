@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import PETRIC_LEVEL
 
 import wbc
 from wbc.errors import BackendUnavailableError
@@ -27,21 +28,6 @@ from wbc.tasks import Bounds, LinearConstraint, LinearTask
 
 NOTE = re.compile(r"(\S+) printed (\d+) lines? \(kept off the console; the first: '(.*)'\)$")
 
-# Level 1 of wbc study petric's whole-body stack (tests/test_regressions.py): qpOASES' first
-# attempt fails there with "Division by zero", its cold retry solves it.
-PETRIC_A = np.array([
-    [-9.6303398848038868e-01, -2.2804360321921050e-16, -2.2804360321921050e-16,
-     -2.4777136099362315e-01, -1.2958422174118701e-16, -2.3594332717769482e-02,
-     -5.5238427079922229e-17, -1.0304463676740155e-01, 0.0],
-    [3.3550882491192020e-16, -4.2973338404012207e-01, -5.3853083663769197e-01,
-     -3.3257467822110141e-17, -7.0004191494248813e-01, -5.4458284007669683e-17,
-     -1.8776334561193522e-01, 8.0657797761728779e-17, 0.0],
-    [9.4817689116476200e-02, -5.6556035781892700e-17, -1.4436738906469700e-17,
-     -5.1677132977978557e-01, 8.2524569792639479e-17, 8.3464074978255731e-01,
-     -4.6930452115573300e-17, 1.6532337206412800e-01, 1.2065569735464764e-48]])
-PETRIC_UPPER = np.array([1.0, 1.0, 2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
-PETRIC_LEVEL = (np.diag([1.0, 1.0] + [0.0] * 7), np.zeros(9), PETRIC_A, np.zeros(3),
-                np.zeros(3), -PETRIC_UPPER, PETRIC_UPPER)
 
 
 def daqp_level():

@@ -13,12 +13,12 @@ from hypothesis import strategies as st
 
 import wbc.robots
 from wbc.errors import InvalidValueError, ShapeError, WbcError
-from wbc.robots.omni_control import OmniForceControl, OmniPositionControl, platform_error
-from wbc.robots.omni_dynamics import OmniDynamics
+from wbc.papers.omni import TorqueDistribution
+from wbc.papers.omni import closed_form as ref
+from wbc.papers.omni.control import OmniForceControl, OmniPositionControl, platform_error
+from wbc.papers.omni.dynamics import OmniDynamics
 from wbc.sim import Simulation
 from wbc.solvers import available_backends
-from wbc.solvers import reference as ref
-from wbc.tasks import TorqueDistribution
 
 DT = 0.01
 MU = 0.5

@@ -1,5 +1,5 @@
 """Wheel-torque distribution of the omni platform: closed forms (wbc.solvers.reference) and their
-QP stacks (wbc.tasks.torque_distribution) on every backend with the tight profile.
+QP stacks (wbc.papers.omni.distribution_tasks) on every backend with the tight profile.
 
 Instances: the paper's wheel Jacobian or a random full-rank (4, 3) one, unequal (or equal)
 normal forces, per-wheel or common friction coefficients, random platform wrenches.
@@ -16,9 +16,9 @@ from scipy.optimize import linprog, minimize_scalar
 
 import wbc
 import wbc.robots as robots
+from wbc.papers.omni import DISTRIBUTIONS, TorqueDistribution, distribution_stack
+from wbc.papers.omni import closed_form as ref
 from wbc.solvers import available_backends
-from wbc.solvers import reference as ref
-from wbc.tasks import DISTRIBUTIONS, TorqueDistribution, distribution_stack
 
 BACKENDS = available_backends()
 TOL = 1e-7

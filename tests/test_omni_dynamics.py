@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 import wbc.robots
 from wbc.errors import InvalidValueError, ShapeError
-from wbc.robots.omni_dynamics import YAW_INERTIA, OmniDynamics, coulomb_forces
+from wbc.papers.omni.dynamics import YAW_INERTIA, OmniDynamics, coulomb_forces
 from wbc.sim import Simulation
 
 DT = 0.01

@@ -14,14 +14,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import wbc
+from wbc.papers import petric
+from wbc.papers.petric import PETRIC_LAMBDA, damped_projector, dls_arm_velocity, projector_leak
 from wbc.solvers import available_backends
-from wbc.solvers.reference import (
-    PETRIC_LAMBDA,
-    damped_projector,
-    dls_arm_velocity,
-    nullspace_projector,
-    projector_leak,
-)
+from wbc.solvers.reference import nullspace_projector
 from wbc.tasks import LinearTask
 
 BACKENDS = available_backends()
@@ -140,16 +136,16 @@ def test_study_arm_stack_is_eq_22_on_the_tiago_panda(tiago, backend, projector):
     below; damped: one level with the posture weighted by λ) on the robot =
     ``dls_arm_velocity`` of the arm's position Jacobian with ``u = K_p e`` and
     ``q̇_n = K_n (q_mid − q)``, at random configurations and targets."""
-    from wbc.experiments.studies import petric
+    from wbc.experiments.studies import petric as study
 
     robot = tiago
     controller = wbc.Controller(robot, petric.arm_stack(robot, projector=projector),
                                 backend=backend, profile="tight", dt=petric.DT)
     rng = np.random.default_rng(7)
     na, nb = robot.n_arm, robot.nv_base
-    q_mid = petric._posture_target(robot)[-na:]
+    q_mid = petric.posture_target(robot)[-na:]
     for _ in range(5):
-        q = petric._start(robot)
+        q = study._start(robot)
         q[:3] = rng.uniform(-1, 1, 3)
         q[-na:] += rng.uniform(-0.3, 0.3, na)
         target = np.eye(4)
@@ -166,7 +162,5 @@ def test_study_arm_stack_is_eq_22_on_the_tiago_panda(tiago, backend, projector):
 
 
 def test_study_arm_stack_refuses_an_unknown_projector(tiago):
-    from wbc.experiments.studies import petric
-
     with pytest.raises(wbc.InvalidValueError, match="projector"):
         petric.arm_stack(tiago, projector="pseudo")

@@ -15,10 +15,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import wbc
+from wbc.papers.petric import VelocityField, rate_limit_interval, rate_limited_twist, smoothstep
 from wbc.robots import tiago_base
 from wbc.solvers import available_backends
-from wbc.solvers.reference import rate_limit_interval, rate_limited_twist
-from wbc.tasks import VelocityField, smoothstep
 
 BACKENDS = available_backends()
 DEG = math.pi / 180.0

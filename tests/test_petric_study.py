@@ -10,7 +10,7 @@ import pytest
 from helpers import assert_study_contract
 
 from wbc.experiments.studies import petric
-from wbc.tasks import VelocityField
+from wbc.papers.petric import VelocityField
 
 
 @pytest.fixture(scope="module")

@@ -15,22 +15,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import wbc
-from wbc.robots import load
-from wbc.solvers import available_backends
-from wbc.solvers.reference import (
+from wbc.papers.sorour import (
+    ArmCompensation,
+    DexterousPosture,
     arm_compensation,
+    share_task,
+    sharing_factor,
     sharing_mobility,
     task_sharing_factor,
     task_sharing_velocity,
 )
-from wbc.tasks import (
-    ArmCompensation,
-    DexterousPosture,
-    LinearTask,
-    RpyPoseTask,
-    share_task,
-    sharing_factor,
-)
+from wbc.robots import load
+from wbc.solvers import available_backends
+from wbc.tasks import LinearTask, RpyPoseTask
 from wbc.tasks.rpy_pose import base_rotation_6, pose_error, rpy, rpy_jacobian
 
 BACKENDS = available_backends()

@@ -12,14 +12,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import wbc
-from wbc.robots.steerable import mpo700
-from wbc.robots.steerable_control import (
+from wbc.papers.sorour.steering import (
     SteerableController,
     drive_rates,
     icr_of_twist,
     scale_into,
     steering_of_icr,
 )
+from wbc.robots.steerable import mpo700
 from wbc.solvers import available_backends
 
 RATE, ACCEL = 1.0, 3.0

@@ -1,5 +1,5 @@
-"""AMP as a QP cascade (wbc.experiments.xing.add_amp_levels) against the paper's closed form
-(wbc.solvers.reference.amp), on every backend with its tight profile.
+"""AMP as a QP cascade (wbc.papers.xing.add_amp_levels) against the paper's closed form
+(wbc.papers.xing.closed_form.amp), on every backend with its tight profile.
 
 Where the arm alone does the task with no bound active, the two are the same (to 1e-7); where
 the greedy SNS loop saturates joints or enables the base, only the task scale is compared,
@@ -19,8 +19,9 @@ from test_equivalence import SCALING_STALLS, SCALING_TOL, SCALING_UNRELIABLE
 import wbc
 import wbc.robots as robots
 from wbc.experiments.studies import xing
+from wbc.papers.xing import POSITION, add_amp_levels, amp_controller
+from wbc.papers.xing import closed_form as ref
 from wbc.solvers import available_backends
-from wbc.solvers import reference as ref
 from wbc.tasks import Bounds, LinearTask
 
 N, N_BASE, R = 10, 3, 3
@@ -43,7 +44,7 @@ def amp_qp(backend: str) -> wbc.Workspace:
     transition = stack.parameter("transition", N_BASE, np.zeros(N_BASE))
     base_free = stack.parameter("base_free", 1, 0.0)
     stack.constrain(Bounds(-np.ones(N), np.ones(N), name="bounds"))
-    xing.add_amp_levels(stack, J, drift, xdd, N_BASE, transition, base_free,
+    add_amp_levels(stack, J, drift, xdd, N_BASE, transition, base_free,
                         LinearTask(np.eye(N), np.zeros(N), name="tertiary"))
     return stack.workspace(backend, "tight")
 
@@ -112,7 +113,7 @@ def test_the_default_daqp_profile_solves_the_amp_cascade_as_exactly_as_tight():
     them where the exact active-set solvers agree with each other (7.6e-4 at most on 1000
     states; see solvers/daqp_backend.py). 300 states of the study's sampler here."""
     robot = robots.load("mecanum_gen3")
-    default, tight = (xing.amp_controller(robot, xing.POSITION, "daqp", profile, jit=False)
+    default, tight = (amp_controller(robot, POSITION, "daqp", profile, jit=False)
                       for profile in ("default", "tight"))
     rng = np.random.default_rng(0)
     worst = 0.0

@@ -14,9 +14,12 @@ CasADi's or pinocchio's own exception, never at the first tick:
   symbol, ragged list), as a float array;
 * :func:`checked_array` — that, of a given shape, finite (or ``±inf`` where allowed);
 * :func:`checked_matrix`, :func:`checked_vector` — a coefficient matrix, a vector of given length
-  (a scalar is broadcast);
-* :func:`checked_number` — one real number in a range (gains, periods, scales);
-  :func:`checked_integer` — a count;
+  (a scalar is broadcast, unless ``broadcast=False``); :func:`checked_2d` — a matrix of any
+  shape ``(m, n)``, empty ones included (the closed forms' Jacobians);
+* :func:`checked_bounds` — lower and upper bounds of given length, ``±inf`` for none, ordered;
+* :func:`checked_number` — one real number in a range (gains, periods, scales, lengths);
+  :func:`checked_scalar` — the same given as a number or a 0-d array, any other shape a
+  :class:`ShapeError`; :func:`checked_integer` — a count;
 * :func:`checked_weights` — a cost weight: a number, one per row, or a CasADi SX expression of the
   stack's parameters (evaluated every tick);
 * :func:`checked_name`, :func:`checked_shape`, :func:`check_robot`, :func:`check_frame`,
@@ -136,19 +139,50 @@ def checked_matrix(value, what: str) -> np.ndarray:
     return arr
 
 
-def checked_vector(value, size: int, what: str, allow_inf: bool = False) -> np.ndarray:
-    """A float vector of ``size`` entries (a scalar is broadcast, a row or column flattened);
-    NaN refused, ``±inf`` unless ``allow_inf``."""
+def checked_vector(value, size: int, what: str, allow_inf: bool = False,
+                   broadcast: bool = True) -> np.ndarray:
+    """A float vector of ``size`` entries, in the caller's units (a scalar is broadcast, a row
+    or column flattened; with ``broadcast=False`` only a 1-D array of ``size`` entries is
+    accepted, a float one returned as is, not copied); NaN refused, ``±inf`` unless
+    ``allow_inf``. Raises :class:`ShapeError` / :class:`NonFiniteError` /
+    :class:`InvalidValueError` naming ``what``."""
     arr = as_float_array(value, what)
-    if arr.ndim == 0:
-        arr = np.full(size, float(arr))
-    elif arr.ndim == 2 and 1 in arr.shape:
-        arr = arr.reshape(-1)
+    if broadcast:
+        if arr.ndim == 0:
+            arr = np.full(size, float(arr))
+        elif arr.ndim == 2 and 1 in arr.shape:
+            arr = arr.reshape(-1)
     if arr.shape != (size,):
-        raise ShapeError(f"{what} must have shape ({size},) or be a scalar, got "
-                         f"{np.shape(value)}")
+        raise ShapeError(f"{what} must have shape ({size},){' or be a scalar' if broadcast else ''}"
+                         f", got {np.shape(value)}")
     check_finite(arr, what, allow_inf)
     return arr
+
+
+def checked_2d(value, what: str) -> np.ndarray:
+    """A finite float array of exactly two dimensions ``(m, n)``, in the caller's units; ``m``
+    or ``n`` may be 0 (a level without rows). Unlike :func:`checked_matrix` a 1-D array is not
+    read as a row: it is a :class:`ShapeError`. Raises :class:`ShapeError` /
+    :class:`NonFiniteError` / :class:`InvalidValueError` naming ``what``."""
+    arr = as_float_array(value, what)
+    if arr.ndim != 2:
+        raise ShapeError(f"{what} must be a 2-D array (m, n), got shape {arr.shape}")
+    check_finite(arr, what)
+    return arr
+
+
+def checked_bounds(lower, upper, size: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(lower, upper)`` as two float vectors of ``size`` entries, in the units of the bounded
+    quantity (each as :func:`checked_vector`: a scalar is broadcast), copies of the arguments.
+    ``-inf`` in ``lower`` and ``+inf`` in ``upper`` mean "no bound"; NaN, ``lower = +inf`` and
+    ``upper = -inf`` are a :class:`NonFiniteError`, ``lower > upper`` anywhere a
+    :class:`BoundsOrderError`, a wrong shape a :class:`ShapeError`, each naming ``what``."""
+    lo = checked_vector(lower, size, f"{what}: lower", allow_inf=True).copy()
+    up = checked_vector(upper, size, f"{what}: upper", allow_inf=True).copy()
+    if (lo == np.inf).any() or (up == -np.inf).any():
+        raise NonFiniteError(f"{what}: a lower bound is +inf or an upper bound is -inf")
+    check_bounds_order(lo, up, what)
+    return lo, up
 
 
 def checked_number(value, what: str, low: float | None = 0.0, strict: bool = False,
@@ -169,10 +203,21 @@ def checked_number(value, what: str, low: float | None = 0.0, strict: bool = Fal
     if not math.isfinite(number):
         raise NonFiniteError(f"{what} must be finite, got {number}")
     if low is not None and (number < low or (strict and number == low)):
-        raise InvalidValueError(f"{what} must be {'>' if strict else '>='} {low}, got {number}")
+        raise InvalidValueError(f"{what} = {number}: must be {'>' if strict else '>='} {low}")
     if high is not None and number > high:
-        raise InvalidValueError(f"{what} must be <= {high}, got {number}")
+        raise InvalidValueError(f"{what} = {number}: must be <= {high}")
     return number
+
+
+def checked_scalar(value, what: str, low: float | None = 0.0, strict: bool = False,
+                   high: float | None = None) -> float:
+    """One real number in the caller's units, given as a number or as an array of shape ``()``:
+    a list, a tuple or an array of any other shape is a :class:`ShapeError` naming ``what``
+    (a vector where one number is expected); then as :func:`checked_number` (range, finite)."""
+    if isinstance(value, (list, tuple)) or (isinstance(value, _ndarray) and value.ndim != 0):
+        got = f"shape {value.shape}" if isinstance(value, _ndarray) else _kind(value)
+        raise ShapeError(f"{what} must be a scalar, got {got}")
+    return checked_number(value, what, low, strict, high)
 
 
 def checked_integer(value, what: str, low: int | None = 0, high: int | None = MAX_SIZE) -> int:

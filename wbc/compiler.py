@@ -3,9 +3,10 @@
 Every QP the tick solves (a level's least-squares QP, a scaling level's LP, the final
 minimum-norm QP) is a *block* with a compiled function ``p -> (H, g, Aᵀ_top, l_top, u_top, lb,
 ub, Eᵀ)``, where ``p`` is the stack's parameter vector. The rows the cascade adds at run time
-(frozen soft-inequality rows and rank-compressed frozen cost rows of earlier levels) are
-appended by the workspace; the block only records how many there can be, so that every
-backend sees fixed shapes.
+(frozen soft-inequality rows of earlier levels) are appended by the workspace; the block only
+records how many there can be, so that every backend sees fixed shapes. The earlier levels'
+cost rows ``E`` are eliminated, not appended (see :mod:`wbc.workspace`); the block keeps room
+for them (``m_frozen_eq``) only to write them back when a failed QP's conflict is named.
 
 Matrices ``A_top`` and ``E`` are returned transposed: CasADi writes column-major, so the
 transpose lands row-major, straight into row blocks of C-ordered numpy arrays.
@@ -66,7 +67,8 @@ class QPBlock:
         s_offset: first row of this level's soft rows in the frozen soft-row store ``S``.
         n_frozen_soft: rows of ``S`` frozen by earlier levels.
         n_frozen_cost: rows of ``E`` frozen by earlier levels (before compression).
-        m_frozen_eq: room for the compressed frozen rows, ``min(n_frozen_cost, n)``.
+        m_frozen_eq: room for an orthonormal basis of the frozen cost rows,
+            ``min(n_frozen_cost, n)``: filled only to name a failed QP's conflict.
         scale_index: index in ``p`` of this level's scale ``s`` (scaling levels only).
         hard_names: which hard constraint each hard row and each variable's bounds come from
             (for naming the constraints of an infeasible level, see :mod:`wbc.infeasibility`).

@@ -17,12 +17,13 @@ Cascades: the frozen rows
 -------------------------
 Level ``k+1`` keeps what the levels above achieved, as the ordinary path does: their soft rows
 at their optimal slacks (``l + w* <= C x <= u + w*``, inequalities as they are) and their task
-rows ``E`` where the level above left them. The ordinary path makes the task rows exact
-equalities on an orthonormal basis of their row space (QR with column pivoting, a numerical
-rank decision), skips a level they leave a single point, and retries a failed level in a thin
-band. A generated expression cannot take such data-dependent decisions, and daqp refuses
-linearly dependent equalities (``EXIT_OVERDETERMINED_INITIAL``) — which cascades have as a
-rule (an orientation level below a position level, a posture below both). The fused cascade
+rows ``E`` where the level above left them. The ordinary path eliminates the task rows (the
+level solves in their null space, found by a QR with column pivoting, a numerical rank
+decision; see :mod:`wbc.workspace`), skips a level they leave a single point, and looks for a
+failed level's implicit equalities. A generated expression cannot take such data-dependent
+decisions, and daqp refuses linearly dependent equalities (``EXIT_OVERDETERMINED_INITIAL``) —
+which cascades have as a rule (an orientation level below a position level, a posture below
+both). The fused cascade
 therefore keeps every frozen task row, without the variables the level fixes (``lb == ub``)
 and scaled to unit norm, as a two-sided band ``|r·x − r·x*| <= FROZEN_BAND·(1 + |r·x*|)``
 (:data:`FROZEN_BAND` = 1e-11) — an inequality pair daqp's dual active-set method adds only

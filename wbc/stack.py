@@ -70,8 +70,8 @@ class Stack:
 
     Within a level tasks are weighted; between levels priorities are strict (lexicographic),
     solved as a cascade: level ``k`` minimises its own cost while every earlier level's optimum
-    is kept (cost rows frozen at their optimal values, rank-compressed; slacks of soft
-    inequalities frozen). Lower ``priority`` numbers come first.
+    is kept (cost rows at their optimal values, by elimination: the level solves in their null
+    space; slacks of soft inequalities frozen). Lower ``priority`` numbers come first.
 
     Args:
         variables: a :class:`Variables`, a mapping ``name -> size``, or an ``int`` (one block

@@ -1,7 +1,7 @@
 """``wbc study omni``: the omni platform's slip experiments (torque-redundancy paper, §4), rerun
 in simulation with position control and with force control under three torque distributions.
 
-Plant: ``"omni4_arm6"`` driven through :class:`wbc.robots.omni_dynamics.OmniDynamics` — a
+Plant: ``"omni4_arm6"`` driven through :class:`wbc.papers.omni.dynamics.OmniDynamics` — a
 planar rigid body of 45 kg (the paper's 15 kg platform + 30 kg arm), wheel rotors, per-wheel
 Coulomb friction with normal forces from the whole system's centre of mass, servo gain errors,
 torque noise and wheel radius errors (values in :data:`PARAMETERS`). The arm swings its
@@ -41,13 +41,11 @@ from typing import Any
 import numpy as np
 
 import wbc.robots as robots
+from wbc.papers.omni import OmniDynamics, OmniForceControl, OmniPositionControl, TorqueDistribution
+from wbc.papers.omni import closed_form as ref
 from wbc.robots.omni import OmniBase
-from wbc.robots.omni_control import OmniForceControl, OmniPositionControl
-from wbc.robots.omni_dynamics import OmniDynamics
 from wbc.sim import Simulation
 from wbc.solvers import available_backends
-from wbc.solvers import reference as ref
-from wbc.tasks import TorqueDistribution
 
 from .study import Claim, StudyResult, replay_timing, save_figure, study_main
 
@@ -397,7 +395,7 @@ def figures(runs: dict, numbers: dict, out_dir: Path) -> list[str]:
 
 
 SUMMARY = """\
-**Plant.** `omni4_arm6` in `wbc.robots.omni_dynamics.OmniDynamics`: 45 kg planar rigid body
+**Plant.** `omni4_arm6` in `wbc.papers.omni.dynamics.OmniDynamics`: 45 kg planar rigid body
 (yaw inertia 2 kg m², our estimate), wheel rotors of 0.02 kg m² (estimate: the gear is not
 given), Coulomb friction μ = 0.3 per wheel (our choice: the paper gives no floor), normal forces
 from the whole system's centre of mass (`wbc.robots.system_com`: the paper's 15 kg + 30 kg, the

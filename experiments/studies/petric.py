@@ -49,25 +49,31 @@ from pathlib import Path
 
 import numpy as np
 
-import wbc
-from wbc.robots import ReducedPanda, load
+from wbc.papers.petric import (
+    DT,
+    K_POSTURE,
+    KP,
+    PETRIC_LAMBDA,
+    DecoupledController,
+    VelocityField,
+    WholeBodyController,
+    arm_stack,
+    posture_target,
+    projector_leak,
+    whole_body_stack,
+)
+from wbc.robots import load
 from wbc.sim import Simulation, actuation
 from wbc.solvers import available_backends
-from wbc.solvers.reference import PETRIC_LAMBDA, projector_leak
-from wbc.tasks import FrameTask, LinearTask, PostureTask, VelocityField, VelocityLimit
 
 from .study import Claim, StudyResult, save_figure, study_main, timing_summary
 
+# the controllers and stacks live in wbc.papers.petric; their names stay importable from here
+# for compatibility
 __all__ = ["DecoupledController", "SCENARIOS", "WholeBodyController", "arm_stack", "main",
            "run", "trajectory", "whole_body_stack"]
 
 ROBOT = "tiago_panda"
-DT = 0.02
-"""Control period [s]."""
-KP = 10.0
-"""Task-space gain ``K_p`` of eq. 22 [1/s]."""
-K_POSTURE = 1.0
-"""Gain ``K_n`` of the null-space posture velocity [1/s]."""
 BASE_LAG = 0.1
 """Time constant of the base's velocity loop [s]."""
 Q_ARM0 = np.array([0.0, 0.3, 0.0, -2.1, 0.0, 2.4, math.pi / 4])
@@ -77,133 +83,6 @@ EQ26_SCENARIOS = ("forward", "sine_large", "free")
 """Scenarios also run with the paper's damped projector (eq. 26 as printed) on the arm."""
 SLICES_Z = (-0.3, 0.0, 0.3, 0.6, 0.9)
 """Heights of the Fig. 3–4 slices [m] (TEE z from the arm root)."""
-
-
-# ----------------------------------------------------------------------------- controllers
-def arm_stack(robot, lam: float = PETRIC_LAMBDA, kp: float = KP, k_posture: float = K_POSTURE,
-              dt: float = DT, projector: str = "exact") -> wbc.Stack:
-    """Eq. 22 as a stack over all ``nv`` velocities, the base's pinned (mobility 0), the TCP
-    position task named ``"ee"`` (``FrameTask``, gain ``K_p·dt``) and ``PostureTask``
-    ``"posture"`` (gain ``K_n·dt``) towards the centre of the arm's joint range.
-
-    ``projector="exact"``: two levels — the task damped by ``ρ² = λ``, then the posture under
-    the task's rows (docs/DESIGN.md, math note 3: the cascade adds exactly ``(I − J⁺J) q̇_n``).
-    ``projector="damped"`` (eq. 26 as printed): one level, the task plus the posture weighted
-    by ``λ`` — ``min ||J q̇ − u||² + λ||q̇ − q̇_n||²``, whose minimiser is
-    ``J#u + (I − J#J) q̇_n`` (see :mod:`wbc.solvers.reference_petric_arm`)."""
-    nb = int(robot.nv_base)
-    mobility = np.r_[np.zeros(nb), np.ones(robot.nv - nb)]
-    exact = projector == "exact"
-    if not exact and projector != "damped":
-        raise wbc.InvalidValueError(f"projector must be 'exact' or 'damped', got {projector!r}")
-    stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping={0: math.sqrt(lam)} if exact else 0.0,
-                      mobility=mobility, min_norm=False)
-    stack.add(FrameTask(robot, "ee", gain=kp * dt, position_only=True, name="ee"), priority=0)
-    _add_posture(stack, robot, k_posture * dt, priority=1 if exact else 0,
-                 weight=1.0 if exact else lam)
-    return stack
-
-
-def _add_posture(stack, robot, gain: float, priority: int, weight: float = 1.0) -> None:
-    posture = PostureTask(robot, gain=gain, name="posture")
-    stack.add(posture, priority=priority, weight=weight)
-    stack.parameter("posture.target", robot.nq, _posture_target(robot))
-
-
-def _posture_target(robot) -> np.ndarray:
-    """``robot.neutral()`` with the arm joints at the centre of their range [rad]."""
-    arm = slice(robot.nq - robot.n_arm, robot.nq)
-    target = robot.neutral()
-    target[arm] = 0.5 * (robot.limits.q_lower[arm] + robot.limits.q_upper[arm])
-    return target
-
-
-def whole_body_stack(robot, lam: float = PETRIC_LAMBDA, kp: float = KP,
-                     k_posture: float = K_POSTURE, dt: float = DT) -> wbc.Stack:
-    """The same task as one QP cascade over base (v, ω) and arm joints: level 0 the damped TCP
-    task with every column, level 1 the field's ``(v, ω)`` as a soft reference (parameter
-    ``"base.b"``), level 2 the posture; the robot's velocity limits are hard bounds."""
-    nb = int(robot.nv_base)
-    stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping={0: math.sqrt(lam)}, min_norm=False)
-    stack.add(FrameTask(robot, "ee", gain=kp * dt, position_only=True, name="ee"), priority=0)
-    stack.add(LinearTask(np.eye(nb, robot.nv), np.zeros(nb), name="base"), priority=1)
-    _add_posture(stack, robot, k_posture * dt, priority=2)
-    stack.constrain(VelocityLimit(robot, name="limits"))
-    return stack
-
-
-class _FieldDriver:
-    """The field's input: ``p`` of the reduced Panda relative to the arm root (base axes)."""
-
-    def __init__(self, robot, field: VelocityField) -> None:
-        self.reduced = ReducedPanda(robot)
-        self.root = robot.mount.translation.copy()
-        self.field = field
-
-    def reset(self) -> None:
-        """Field at rest, no latched heading (before a new run)."""
-        self.field.reset()
-
-    def tee(self, q) -> np.ndarray:
-        """The TEE point ``p`` [m] (arm-root origin, base axes)."""
-        return self.reduced.point(q, "base") - self.root
-
-    def base_command(self, q) -> np.ndarray:
-        return np.array(self.field.step(self.tee(q)))
-
-
-class DecoupledController:
-    """Petrič & Žlajpah's controller: eq. 22 on the arm (:func:`arm_stack`) and the velocity
-    field on the base, independent of each other.
-
-    Args:
-        robot: ``load("tiago_panda")``.
-        field: the base's :class:`wbc.tasks.VelocityField`.
-        backend: QP backend of the arm stack.
-        dt: control period [s].
-        projector: the arm's null-space projector, ``"exact"`` or ``"damped"`` (eq. 26 as
-            printed), see :func:`arm_stack`.
-
-    Attributes:
-        move_base: ``False`` holds the base still (Fig. 6's fixed base); the field is then not
-            evaluated.
-
-    ``step(q, v, ee=T)`` takes the TCP target pose ``T`` (4, 4) (its translation is used) and
-    returns the velocity command ``(v, ω, q̇_arm)``.
-    """
-
-    def __init__(self, robot, field: VelocityField, backend: str = "daqp",
-                 dt: float = DT, projector: str = "exact") -> None:
-        self.arm = wbc.Controller(robot, arm_stack(robot, dt=dt, projector=projector),
-                                  backend=backend, dt=dt)
-        self.driver = _FieldDriver(robot, field)
-        self.nb = int(robot.nv_base)
-        self.move_base = True
-        self.last_solution: wbc.Solution | None = None
-
-    def step(self, q, v=None, **references) -> np.ndarray:
-        command = np.array(self.arm.step(q, v, **references))
-        self.last_solution = self.arm.last_solution
-        command[: self.nb] = self.driver.base_command(q) if self.move_base else 0.0
-        return command
-
-
-class WholeBodyController:
-    """Beyond the paper: the field's ``(v, ω)`` as a soft reference one level below the TCP
-    task of a whole-body QP (:func:`whole_body_stack`). Same ``step`` as
-    :class:`DecoupledController`."""
-
-    def __init__(self, robot, field: VelocityField, backend: str = "daqp",
-                 dt: float = DT) -> None:
-        self.qp = wbc.Controller(robot, whole_body_stack(robot, dt=dt), backend=backend, dt=dt)
-        self.driver = _FieldDriver(robot, field)
-        self.last_solution: wbc.Solution | None = None
-
-    def step(self, q, v=None, **references) -> np.ndarray:
-        base = self.driver.base_command(q)
-        command = np.array(self.qp.step(q, v, **{"base.b": base}, **references))
-        self.last_solution = self.qp.last_solution
-        return command
 
 
 # ----------------------------------------------------------------------------- trajectories
@@ -327,7 +206,7 @@ def _leak(robot, run) -> np.ndarray:
     the TCP velocity (``J`` the arm's position Jacobian, ``q̇_n`` the posture velocity)."""
     probe = robot.clone()
     na = robot.n_arm
-    centre = _posture_target(robot)[-na:]
+    centre = posture_target(robot)[-na:]
     out = np.empty(len(run.t))
     for k, q in enumerate(run.q):
         J = probe.frame_jacobian(q, "ee")[:3, -na:]

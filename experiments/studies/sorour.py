@@ -9,7 +9,7 @@ Robot ``mpo700_lwr4`` (Neobotix MPO700 + KUKA LWR-IV). Five target poses of the 
 * ``compensated`` — eq. 9 plus eq. 14: the arm makes up for the base velocity the steering
   controller will not deliver.
 
-The base is simulated through its own controller (:class:`wbc.robots.steerable_control.
+The base is simulated through its own controller (:class:`wbc.papers.sorour.steering.
 SteerableDrive`): the commanded base twist goes through the ICR steering QP and the drive
 controller, and the base moves at the resulting *feasible* twist ``q̇_bf``. The compensated
 controller predicts ``q̇_bf`` with its own copy of the same steering controller (same state,
@@ -19,37 +19,35 @@ same inputs: the paper's "next sample" prediction).
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import ConvexHull
 
 import wbc
-from wbc.robots import load
-from wbc.robots.steerable_control import (
-    MPO700_STEER_LIMITS,
-    SteerableController,
+from wbc.papers.sorour import (
+    N_BASE,
+    PARAMETERS,
+    Q_DEX,
+    VARIANTS,
+    SorourController,
     SteerableDrive,
-    scale_into,
+    steering_controller,
 )
+from wbc.robots import load
 from wbc.sim import Simulation
 from wbc.solvers import available_backends
-from wbc.solvers.reference import task_sharing_factor
-from wbc.tasks import ArmCompensation, DexterousPosture, RpyPoseTask, share_task, sharing_factor
-from wbc.tasks.rpy_pose import pose_error, rpy_jacobian
+from wbc.tasks import RpyPoseTask
+from wbc.tasks.rpy_pose import pose_error
 
 from .study import Claim, StudyResult, replay_timing, save_figure, study_main
 
+# the controller and Table I live in wbc.papers.sorour; their names stay importable from here
+# for compatibility
 __all__ = ["PARAMETERS", "POSES", "SorourController", "main", "run"]
 
-#: Table I (``ts`` the control period [s]; lengths [m]; gains [1/s]).
-PARAMETERS = {"lambda_p": 1.7, "lambda_dex": 3.5, "rho": 0.001, "ts": 0.025, "Kp": 2.0,
-              "r_w": 0.09, "d": 0.045, "h_x": 0.24, "h_y": 0.19, "r_fm": 0.25, "r_mm": 0.9,
-              "steer_rate_max": MPO700_STEER_LIMITS[0],
-              "steer_acceleration_max": MPO700_STEER_LIMITS[1], "icr_gain": 10.0}
 #: Table II: initial end-tip pose, then (start time [s], target pose (x, y, z, roll, pitch,
-#: yaw)); the dexterous arm configuration.
+#: yaw)).
 INITIAL_POSE = np.array([0.708, 0.004, 1.08, math.pi / 2, 0.0, 0.0])
 POSES = ((0.0, (5.0, 1.5, 1.0, 0.0, 0.0, 0.0)),
          (20.0, (5.0, 1.3, 1.0, 0.0, 0.0, 0.0)),
@@ -57,9 +55,6 @@ POSES = ((0.0, (5.0, 1.5, 1.0, 0.0, 0.0, 0.0)),
          (35.0, (5.0, 1.5, 1.0, 0.0, 0.0, 0.0)),
          (45.0, (4.0, -0.5, 1.0, math.pi / 2, 0.0, 0.0)))
 DURATION = 65.0
-Q_DEX = np.array([math.pi / 2, math.pi / 2, math.pi / 2, -math.pi / 2, 0.0, 0.0, 0.0])
-VARIANTS = ("pinv", "proposed", "compensated")
-N_BASE = 3
 #: MPO700 deck outline [m] (the body box of wbc.robots.mpo700: 0.99 × 0.65 m).
 DECK = np.array([[0.495, 0.325], [-0.495, 0.325], [-0.495, -0.325], [0.495, -0.325]])
 ARM_FRAMES = ("lwr_joint_2", "lwr_joint_4", "lwr_joint_6", "lwr_flange", "ee")
@@ -74,66 +69,6 @@ def target_at(t: float) -> np.ndarray:
         if t >= start:
             current = pose
     return np.array(current, dtype=float)
-
-
-class SorourController:
-    """One of the three variants (see the module docstring) as a ``step(q, v, ee=target)``.
-
-    Attributes:
-        last_solution: the eq. 8/9 stack's solution of the last tick.
-        psi: ψ of the last tick (eq. 11; ``nan`` for ``pinv``, which shares nothing).
-        tick_parts: wall times [s] of the last tick: ``"stack"``, ``"icr_qp"``,
-            ``"compensation"``.
-    """
-
-    def __init__(self, robot, variant: str, backend: str = "daqp") -> None:
-        if variant not in VARIANTS:
-            raise wbc.UnknownNameError(f"unknown variant {variant!r}; variants are {VARIANTS}")
-        p = PARAMETERS
-        self.robot, self.variant = robot, variant
-        stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping={0: p["rho"]}, min_norm=False)
-        pose = RpyPoseTask(robot, "ee", p["lambda_p"], name="ee")
-        stack.add(pose, priority=0)
-        if variant != "pinv":
-            share_task(stack, sharing_factor(pose.position_error_norm, p["r_fm"], p["r_mm"]),
-                       N_BASE, priority=0)
-            stack.add(DexterousPosture(robot, Q_DEX, p["lambda_dex"], name="dex"), priority=1)
-        self.controller = wbc.Controller(robot, stack, backend=backend, dt=p["ts"])
-        self.steering = steering_controller(robot, backend)
-        self.compensation = (ArmCompensation(robot.nv - N_BASE, backend=backend)
-                             if variant == "compensated" else None)
-        self.last_solution: wbc.Solution | None = None
-        self.psi = math.nan
-        self.tick_parts: dict[str, float] = {}
-
-    def step(self, q, v=None, ee=None) -> np.ndarray:
-        clock = time.perf_counter
-        t0 = clock()
-        command = self.controller.step(q, ee=ee).copy()
-        self.last_solution = self.controller.last_solution
-        # the base's reference within its twist limits (direction kept), see the summary
-        command[:N_BASE] = scale_into(command[:N_BASE], self.robot.base.v_max)
-        t1 = clock()
-        predicted = self.steering.step(command[:N_BASE])  # the base's next-sample twist
-        t2 = clock()
-        pose = self.robot.frame_pose(q, "ee")
-        if self.variant != "pinv":
-            self.psi = task_sharing_factor(float(np.linalg.norm(pose_error(pose, ee)[:3])),
-                                           PARAMETERS["r_fm"], PARAMETERS["r_mm"])
-        if self.compensation is not None:
-            J = rpy_jacobian(self.robot.frame_jacobian(q, "ee"), pose[:3, :3], q[2])
-            command[N_BASE:] += self.compensation(J[:, N_BASE:], J[:, :N_BASE],
-                                                  command[:N_BASE], predicted.twist)
-        self.tick_parts = {"stack": t1 - t0, "icr_qp": predicted.qp_s,
-                           "compensation": clock() - t2}
-        return command
-
-
-def steering_controller(robot, backend: str) -> SteerableController:
-    p = PARAMETERS
-    return SteerableController(robot.base, dt=p["ts"], steer_rate=p["steer_rate_max"],
-                               steer_acceleration=p["steer_acceleration_max"],
-                               icr_gain=p["icr_gain"], drive_gain=p["Kp"], backend=backend)
 
 
 def initial_configuration(robot) -> np.ndarray:
@@ -356,7 +291,7 @@ with eq. 10 read as a mobility (erratum: ψ = 1 moves the arm only), the dextero
 the exact weighted null-space form. No joint limits (the paper's formulation has none).
 
 **Base.** The commanded base twist goes through Sorour's steering controller
-(`wbc.robots.steerable_control`): ICR of the twist, direct or complementary route (±X of the
+(`wbc.papers.sorour.steering`): ICR of the twist, direct or complementary route (±X of the
 homogeneous ICR), ICR velocity controller (λ = 10 1/s, our choice), next-sample ICR as a QP
 with two cone constraints per steer joint (rates hard, accelerations soft), drive controller
 (K_p = 2) projected on the next ICR's twist and scaled into the MPO700's twist limits

@@ -30,294 +30,43 @@ two are the same (tests/test_xing_equivalence.py).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-import wbc
 import wbc.robots as robots
-from wbc.errors import InvalidValueError, WbcError
-from wbc.jit import compiled_c
-from wbc.quantities import QuantityRegistry, registry_of
-from wbc.sim import Simulation
-from wbc.sim.actuation import Actuation
-from wbc.solvers import available_backends
-from wbc.solvers import reference as ref
-from wbc.tasks import JointAccelerationLimit, joint_acceleration_bounds
-from wbc.tasks.frame import so3_log
-from wbc.tasks.manipulability import (
-    ManipulabilityTask,
-    arm_jacobian,
-    arm_jacobian_derivatives,
-    smallest_singular_value,
+from wbc.papers.xing import (
+    DT,
+    POSE,
+    POSITION,
+    ClosedFormPlanner,
+    CommandedVelocityOdometry,
+    Setup,
+    add_amp_levels,
+    amp_controller,
+    amp_stack,
+    symbolic_quantity,
 )
-from wbc.terms import Cost
+from wbc.quantities import registry_of
+from wbc.sim import Simulation
+from wbc.solvers import available_backends
+from wbc.tasks import joint_acceleration_bounds
+from wbc.tasks.frame import so3_log
+from wbc.tasks.manipulability import arm_jacobian, smallest_singular_value
 
 from .study import Claim, StudyResult, save_figure, study_main, timing_summary
 
+# the planners, the stack and the plant live in wbc.papers.xing; their names stay importable from
+# here (``wbc.experiments.xing.amp_stack``) for compatibility
 __all__ = ["Setup", "ClosedFormPlanner", "CommandedVelocityOdometry", "add_amp_levels",
            "amp_stack", "amp_controller", "main", "run"]
 
 ROBOT = "mecanum_gen3"
-DT = 0.02
-"""Control period [s] (the paper does not give it; its loop took 14.8 ms, so 50 Hz)."""
 
-
-@dataclass(frozen=True)
-class Setup:
-    """The planner's parameters (the paper's, §4.2–4.4).
-
-    Attributes:
-        rows: task dimension ``r``: 3 (position) or 6 (position and orientation).
-        kd, kp: the gains ``K_d``, ``K_p`` (r,) [1/s, 1/s²].
-        sigma_thr: ``σ_min`` threshold of the base switch (0: never).
-        gamma1, gamma2: the manipulability objective's gains [1/s] (0, 0: none).
-        dt: the control period ``T`` [s]; bounds: ``"xing"`` or ``"viable"``.
-    """
-
-    rows: int = 3
-    kd: tuple = (10.0, 10.0, 10.0)
-    kp: tuple = (20.0, 20.0, 20.0)
-    sigma_thr: float = 0.15
-    gamma1: float = 5.0
-    gamma2: float = 0.5
-    dt: float = DT
-    bounds: str = "xing"
-
-
-POSITION = Setup()
-POSE = Setup(rows=6, kd=(10.0, 10.0, 10.0, 3.0, 3.0, 3.0), kp=(20.0, 20.0, 20.0, 5.0, 5.0, 5.0),
-             sigma_thr=0.19)
 NO_AVOIDANCE = replace(POSITION, sigma_thr=0.0, gamma1=0.0, gamma2=0.0)
 NO_TERTIARY = replace(POSITION, gamma1=0.0, gamma2=0.0)
-
-
-# ---------------------------------------------------------------------------- the task
-def cartesian_command(pose, J, drift, v, target, target_velocity, target_acceleration, kd,
-                      kp, rows: int):
-    """``(J_r, drift_r, ẍ_cmd)`` as SX: the task's rows of the frame Jacobian and drift (world
-    axes) and the commanded acceleration ``ẍ_d + K_d (ẋ_d − J v) + K_p e`` (Appendix C), with
-    ``e = [p_d − p; log3(R_d Rᵀ)]`` (orientation error in world axes, for ``rows = 6``);
-    ``kd``, ``kp`` (rows,) the diagonal gains."""
-    r = rows
-    error = target[:3, 3] - pose[:3, 3]
-    if r == 6:
-        error = ca.vertcat(error, so3_log(target[:3, :3] @ pose[:3, :3].T))
-    J_r, drift_r = J[:r, :], drift[:r]
-    command = (target_acceleration[:r] + kd * (target_velocity[:r] - J_r @ v) + kp * error)
-    return J_r, drift_r, command
-
-
-def _symbolic(registry: QuantityRegistry, name: str) -> ca.Function:
-    """The CasADi function of the robot's model quantity ``name``."""
-    build = registry.get(name).symbolic
-    if build is None:
-        raise WbcError(f"the robot has no symbolic form of {name!r}")
-    return build()
-
-
-def _base_slice(robot) -> slice:
-    return slice(0, int(robot.nv) - int(robot.n_arm))
-
-
-def base_transition_expression(robot, v, dt: float):
-    """Eq. (15) sampled (:func:`wbc.solvers.reference.base_transition`) as SX of ``v``."""
-    base = _base_slice(robot)
-    lim = robot.limits
-    return ca.fmin(ca.fmax(-v[base] / dt, ca.DM(lim.a_lower[base])), ca.DM(lim.a_upper[base]))
-
-
-def add_amp_levels(stack: wbc.Stack, J, drift, xdd, n_base: int, transition, base_free,
-                   tertiary: wbc.Task) -> wbc.Stack:
-    """AMP's three priority levels (see the module docstring) over the stack's whole decision
-    vector ``q̈``; the joint bounds are the caller's (``stack.constrain``)."""
-    x = stack.variables.symbol
-    stack.add(Cost(J @ x + drift, xdd, name="cartesian"), priority=0, scaling=True)
-    stack.add(Cost(x[:n_base], transition, weight=1 - base_free, name="base_transition"),
-              priority=1)
-    stack.add(tertiary, priority=2)
-    return stack
-
-
-def amp_stack(robot, setup: Setup = POSITION) -> wbc.Stack:
-    """The AMP cascade for ``robot`` (references ``"target"`` (4, 4) world pose,
-    ``"target_velocity"`` (6,), ``"target_acceleration"`` (6,), rows ``[linear; angular]``;
-    parameters ``"kd"``, ``"kp"`` (r,), ``"sigma_thr"``, ``"manipulability.gamma1"``,
-    ``"manipulability.gamma2"`` default to ``setup``'s)."""
-    nq, nv = int(robot.nq), int(robot.nv)
-    stack = wbc.Stack(wbc.Variables(qdd=nv), min_norm=False)
-    stack.constrain(JointAccelerationLimit(robot, setup.dt, setup.bounds, name="limits"))
-    q, v = stack.quantity("q", nq), stack.quantity("v", nv)
-    pose = stack.quantity("pose[ee]", (4, 4))
-    J = stack.quantity("J[ee]", (6, nv))
-    drift = stack.quantity("Jdot_v[ee]", (6, 1))
-    target = stack.parameter("target", (4, 4), np.eye(4))
-    target_velocity = stack.parameter("target_velocity", 6, np.zeros(6))
-    target_acceleration = stack.parameter("target_acceleration", 6, np.zeros(6))
-    # the setup's numbers are parameters (defaults), so every setup of one task size shares
-    # one compiled (and JIT-built) stack
-    kd = stack.parameter("kd", setup.rows, setup.kd)
-    kp = stack.parameter("kp", setup.rows, setup.kp)
-    sigma_thr = stack.parameter("sigma_thr", 1, setup.sigma_thr)
-    J_r, drift_r, xdd = cartesian_command(pose, J, drift, v, target, target_velocity,
-                                          target_acceleration, kd, kp, setup.rows)
-    q_sym, J_m = arm_jacobian(robot)
-    sigma = ca.substitute(smallest_singular_value(J_m), q_sym, q)
-    base_free = ca.if_else(sigma < sigma_thr, 1.0, 0.0)
-    tertiary = ManipulabilityTask(robot, gamma1=setup.gamma1, gamma2=setup.gamma2,
-                                  name="manipulability")
-    n_base = _base_slice(robot).stop
-    return add_amp_levels(stack, J_r, drift_r, xdd, n_base,
-                          base_transition_expression(robot, v, setup.dt), base_free, tertiary)
-
-
-def amp_controller(robot, setup: Setup = POSITION, backend: str = "daqp",
-                   profile: str = "default", jit: bool = True) -> wbc.Controller:
-    """AMP as a QP in a :class:`wbc.Controller` (compiled kinematics, JIT by default; a
-    failed solve decelerates within the bounds)."""
-    return wbc.Controller(robot, amp_stack(robot, setup), backend, profile, dt=setup.dt,
-                          fallback="decelerate", jit=jit)
-
-
-# ---------------------------------------------------------------------------- closed forms
-class ClosedFormPlanner:
-    """The paper's planners in closed form, in closed loop (``step(q, v, **references)``).
-
-    ``method="amp"``: :func:`wbc.solvers.reference.amp` with the appendix's manipulability
-    derivatives; ``method="traditional"``: :func:`wbc.solvers.reference.traditional`. The
-    model (task rows, drift, command, ``J_m`` and its derivatives) is one CasADi function of
-    ``(q, v, references)``, compiled to C once (:func:`wbc.jit.compiled_c`) when ``jit``.
-
-    Attributes:
-        last_solution: always ``None`` (no QP); ``last_info``: the last :class:`AMPInfo`.
-    """
-
-    last_solution = None
-
-    def __init__(self, robot, setup: Setup = POSITION, method: str = "amp",
-                 jit: bool = True) -> None:
-        if method not in ("amp", "traditional"):
-            raise InvalidValueError(f"method must be 'amp' or 'traditional', got {method!r}")
-        self.robot, self.setup, self.method = robot, setup, method
-        self.nq, self.nv, self.n_arm = int(robot.nq), int(robot.nv), int(robot.n_arm)
-        self.n_base = self.nv - self.n_arm
-        registry = registry_of(robot)
-        q, v = ca.SX.sym("q", self.nq), ca.SX.sym("v", self.nv)
-        target = ca.SX.sym("target", 4, 4)
-        target_velocity, target_acceleration = ca.SX.sym("tv", 6), ca.SX.sym("ta", 6)
-        kd, kp = ca.SX.sym("kd", setup.rows), ca.SX.sym("kp", setup.rows)
-        pose = _symbolic(registry, "pose[ee]")(q)
-        J = _symbolic(registry, "J[ee]")(q)
-        drift = _symbolic(registry, "Jdot_v[ee]")(q, v)
-        J_r, drift_r, xdd = cartesian_command(pose, J, drift, v, target, target_velocity,
-                                              target_acceleration, kd, kp, setup.rows)
-        outputs = [ca.densify(o) for o in (J_r, drift_r, xdd, *arm_jacobian_derivatives(robot)(
-            q, v[self.n_base:]))]
-        # the gains are inputs, so that every setup of one task size shares one C library
-        function = ca.Function("xing_model", [q, v, target, target_velocity,
-                                              target_acceleration, kd, kp], outputs)
-        if jit:
-            try:
-                function = compiled_c(function)
-            except RuntimeError:  # no C compiler: CasADi's virtual machine, same values
-                pass
-        # evaluated through a buffer into preallocated arrays (no DM conversions per tick)
-        self._inputs = [np.zeros(function.nnz_in(i)) for i in range(function.n_in())]
-        self._outputs = [np.zeros(function.size_out(i), order="F")
-                         for i in range(function.n_out())]
-        self._buffer, self._evaluate = function.buffer()
-        # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res)
-        for i, array in enumerate(self._inputs):
-            self._buffer.set_arg(i, memoryview(array))  # type: ignore[call-arg, arg-type]
-        for i, out in enumerate(self._outputs):
-            self._buffer.set_res(i, memoryview(out.reshape(-1, order="F")))  # type: ignore[call-arg, arg-type]
-        lim = robot.limits
-        self.q_min = np.concatenate([np.full(self.n_base, -np.inf), lim.q_lower[-self.n_arm:]])
-        self.q_max = np.concatenate([np.full(self.n_base, np.inf), lim.q_upper[-self.n_arm:]])
-        self.last_info: ref.AMPInfo | None = None
-
-    def terms(self, q, v, target, target_velocity, target_acceleration):
-        """``(J_r, drift_r, ẍ_cmd, q̈_sa, σ_min)`` at a state, numerically."""
-        m = self.n_arm
-        for array, value in zip(self._inputs, (q, v, np.asarray(target).T, target_velocity,
-                                               target_acceleration, self.setup.kd,
-                                               self.setup.kp), strict=True):
-            array[:] = np.ravel(value)  # column-major: the transpose's rows
-        self._evaluate()
-        J, drift, xdd, J_m, dJ, dJ_dot = self._outputs
-        dJ = dJ.reshape(m, 3, m).transpose(2, 1, 0)  # rows i + 3j -> [k, i, j]
-        dJ_dot = dJ_dot.reshape(m, 3, m).transpose(2, 1, 0)
-        v_arm = v[self.n_base:]
-        qdd_sa = np.zeros(self.nv)
-        qdd_sa[self.n_base:] = ref.manipulability_acceleration(
-            ref.manipulability_gradient(J_m, dJ),
-            ref.manipulability_hessian_product(J_m, dJ, dJ_dot, v_arm), v_arm,
-            self.setup.gamma1, self.setup.gamma2)
-        sigma = float(np.linalg.svd(J_m, compute_uv=False)[-1])
-        return J.copy(), drift[:, 0].copy(), xdd[:, 0].copy(), qdd_sa, sigma
-
-    def bounds(self, q, v) -> tuple[np.ndarray, np.ndarray]:
-        """The joint acceleration bounds (eqs. 6–8, or the viable ones) at a state."""
-        positions = np.concatenate([np.zeros(self.n_base), q[-self.n_arm:]])
-        lim = self.robot.limits
-        return joint_acceleration_bounds(positions, v, self.q_min, self.q_max, lim.v_lower,
-                                         lim.v_upper, lim.a_lower, lim.a_upper, self.setup.dt,
-                                         self.setup.bounds)
-
-    def step(self, q, v, target, target_velocity, target_acceleration) -> np.ndarray:
-        q, v = np.asarray(q, float), np.asarray(v, float)
-        J, drift, xdd, qdd_sa, sigma = self.terms(q, v, target, target_velocity,
-                                                  target_acceleration)
-        if self.method == "traditional":
-            return ref.traditional(J, xdd, drift, qdd_sa)
-        lower, upper = self.bounds(q, v)
-        lim = self.robot.limits
-        base = slice(0, self.n_base)
-        transition = ref.base_transition(v[base], lim.a_lower[base], lim.a_upper[base],
-                                         self.setup.dt)
-        # bounds of eqs. 7-8 can cross (see wbc.tasks.joint_acceleration): the joint then
-        # gets its lower bound, as SNS saturating it there would
-        qdd, self.last_info = ref.amp(J, xdd, drift, lower, np.maximum(lower, upper),
-                                      self.n_base, qdd_sa=qdd_sa, transition=transition,
-                                      sigma_min=sigma, sigma_thr=self.setup.sigma_thr)
-        return qdd
-
-
-# ---------------------------------------------------------------------------- actuation
-class CommandedVelocityOdometry(Actuation):
-    """The base executes its velocity command with a scale error and multiplicative noise;
-    its odometry reports the command (the arm is exact).
-
-    Xing et al.'s robot is commanded at the velocity level (the integral of the planned
-    acceleration). With ``v_cmd = v_est + q̈·dt`` the velocity asked for — computed from the
-    *measured* velocity, as the planner integrates its own state — the true base velocity is
-    ``(1 + scale + noise·N(0, 1)) ⊙ v_cmd`` (errors proportional to the commanded speed, as
-    wheel slip and radius errors are: a base commanded to stay still does not move) and the
-    measured one is ``v_cmd``. (``wbc.sim.actuation.OdometryError`` has the same scale error
-    but *additive* noise, which moves a base commanded to stay still — and whether AMP keeps
-    the base still is what the study measures; hence this model.)
-
-    Args:
-        scale: relative scale errors of ``(v_x, v_y, ω)`` [-].
-        noise: standard deviations of the relative noise [-].
-    """
-
-    def __init__(self, scale=(0.03, -0.03, 0.03), noise=(0.02, 0.02, 0.02)) -> None:
-        self.scale = np.asarray(scale, dtype=float)
-        self.noise = np.asarray(noise, dtype=float)
-
-    def reset(self, robot, dt: float) -> None:
-        self._base = slice(0, int(robot.nv_base))
-
-    def apply(self, state) -> None:
-        command = state.v_est + np.asarray(state.command, dtype=float) * state.dt
-        b = self._base
-        draw = state.rng.standard_normal(self.scale.shape)
-        state.v_true = command.copy()
-        state.v_true[b] = (1.0 + self.scale + self.noise * draw) * command[b]
-        state.v_measured = command.copy()
 
 
 # ---------------------------------------------------------------------------- scenarios
@@ -367,7 +116,7 @@ def truth_measures(robot, q: np.ndarray, targets: np.ndarray) -> tuple[np.ndarra
     targets (N, 4, 4), and ``σ_min`` of the arm's position Jacobian."""
     registry = registry_of(robot)
     q_sym, J_m = arm_jacobian(robot)
-    pose = _symbolic(registry, "pose[ee]")(q_sym)
+    pose = symbolic_quantity(registry, "pose[ee]")(q_sym)
     target = ca.SX.sym("target", 4, 4)
     error = ca.vertcat(target[:3, 3] - pose[:3, 3], so3_log(target[:3, :3] @ pose[:3, :3].T))
     measure = ca.Function("truth", [q_sym, target], [error, smallest_singular_value(J_m)])

@@ -1,0 +1,60 @@
+"""The omnidirectional platform paper: four omni wheels under an octagonal platform with a 6-DoF
+arm, the wheel torques' redundancy used to spread the demanded wrench by the wheels' friction
+capacity (eqs. 7–13), against position control through the wheel Jacobian (eq. 3).
+
+What lives where:
+
+* :mod:`~wbc.papers.omni.distribution_tasks` — the distributions as QP stacks
+  (:class:`TorqueDistribution`, :func:`distribution_stack`, their tasks);
+* :mod:`~wbc.papers.omni.control` — the platform's two controllers (:class:`OmniPositionControl`,
+  :class:`OmniForceControl`);
+* :mod:`~wbc.papers.omni.dynamics` — the plant: the platform's planar rigid-body dynamics with
+  Coulomb wheel friction and servos (:class:`OmniDynamics`, a ``wbc.sim`` actuation);
+* :mod:`~wbc.papers.omni.closed_form` — the distributions in closed form (also in
+  :mod:`wbc.solvers.reference`).
+
+The base's kinematics, masses and normal forces stay generic in :mod:`wbc.robots.omni`. The
+study (scenarios, metrics, claims, figures): :mod:`wbc.experiments.studies.omni`.
+"""
+
+from .closed_form import (
+    DISTRIBUTION_METHODS,
+    friction_utilisation,
+    torque_distribution,
+    torque_null_space,
+)
+from .control import (
+    OmniForceControl,
+    OmniPositionControl,
+    platform_error,
+)
+from .distribution_tasks import (
+    DISTRIBUTIONS,
+    FrictionUtilisation,
+    TorqueDistribution,
+    UtilisationBound,
+    WheelWrench,
+    distribution_stack,
+)
+from .dynamics import (
+    OmniDynamics,
+    coulomb_forces,
+)
+
+__all__ = [
+    "DISTRIBUTIONS",
+    "DISTRIBUTION_METHODS",
+    "FrictionUtilisation",
+    "OmniDynamics",
+    "OmniForceControl",
+    "OmniPositionControl",
+    "TorqueDistribution",
+    "UtilisationBound",
+    "WheelWrench",
+    "coulomb_forces",
+    "distribution_stack",
+    "friction_utilisation",
+    "platform_error",
+    "torque_distribution",
+    "torque_null_space",
+]

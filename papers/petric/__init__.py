@@ -1,0 +1,67 @@
+"""Petrič & Žlajpah, a velocity field for the base of a mobile manipulator that keeps the arm's
+end point in a comfortable zone, with eq. 22's damped least-squares arm controller: Tiago
+(differential drive) + Franka Panda.
+
+What lives where:
+
+* :mod:`~wbc.papers.petric.velocity_field` — the base's velocity field
+  (:class:`VelocityField`, with its rate-limit stage as a QP level) and :func:`smoothstep`;
+* :mod:`~wbc.papers.petric.stacks` — eq. 22 as a stack (:func:`arm_stack`) and the whole-body
+  QP beyond the paper (:func:`whole_body_stack`), the gains (:data:`KP`, :data:`K_POSTURE`) and
+  control period (:data:`DT`);
+* :mod:`~wbc.papers.petric.controllers` — :class:`DecoupledController` (the paper's: arm and
+  base independent) and :class:`WholeBodyController`;
+* :mod:`~wbc.papers.petric.closed_form` (the base's rate limits) and
+  :mod:`~wbc.papers.petric.closed_form_arm` (eq. 22, eq. 26's damped projector) — the closed
+  forms (also in :mod:`wbc.solvers.reference`).
+
+The study (scenarios, metrics, claims, figures): :mod:`wbc.experiments.studies.petric`.
+"""
+
+from .closed_form import (
+    rate_limit_interval,
+    rate_limited_twist,
+)
+from .closed_form_arm import (
+    PETRIC_LAMBDA,
+    damped_projector,
+    dls_arm_velocity,
+    projector_leak,
+)
+from .controllers import (
+    DecoupledController,
+    FieldDriver,
+    WholeBodyController,
+)
+from .stacks import (
+    DT,
+    K_POSTURE,
+    KP,
+    arm_stack,
+    posture_target,
+    whole_body_stack,
+)
+from .velocity_field import (
+    VelocityField,
+    smoothstep,
+)
+
+__all__ = [
+    "DT",
+    "DecoupledController",
+    "FieldDriver",
+    "KP",
+    "K_POSTURE",
+    "PETRIC_LAMBDA",
+    "VelocityField",
+    "WholeBodyController",
+    "arm_stack",
+    "damped_projector",
+    "dls_arm_velocity",
+    "posture_target",
+    "projector_leak",
+    "rate_limit_interval",
+    "rate_limited_twist",
+    "smoothstep",
+    "whole_body_stack",
+]
