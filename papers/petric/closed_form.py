@@ -25,33 +25,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
+from wbc.checks import as_float_array, checked_vector
+from wbc.errors import InvalidValueError, ShapeError
 
 __all__ = ["rate_limit_interval", "rate_limited_twist"]
 
 
-def _checked(value, size: int, name: str, positive: bool = False) -> np.ndarray:
-    """``value`` as a finite ``(size,)`` array (a scalar is broadcast)."""
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 0:
-        arr = np.full(size, float(arr))
-    if arr.shape != (size,):
-        raise ShapeError(f"{name} must be a scalar or have shape ({size},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise NonFiniteError(f"{name} holds NaN or inf")
-    if positive and np.any(arr <= 0.0):
-        raise InvalidValueError(f"{name} must be > 0, got {arr}")
-    return arr
-
-
 def _prepare(target, previous, limit, rate_limit):
-    target = np.asarray(target, dtype=np.float64)
+    target = as_float_array(target, "target")
     if target.ndim != 1:
         raise ShapeError(f"target must be a vector, got shape {target.shape}")
     n = target.shape[0]
-    return (_checked(target, n, "target"), _checked(previous, n, "previous"),
-            _checked(limit, n, "limit", positive=True),
-            _checked(rate_limit, n, "rate_limit", positive=True))
+    limit, rate_limit = checked_vector(limit, n, "limit"), checked_vector(rate_limit, n,
+                                                                            "rate_limit")
+    for name, value in (("limit", limit), ("rate_limit", rate_limit)):
+        if np.any(value <= 0.0):
+            raise InvalidValueError(f"{name} must be > 0, got {value}")
+    return (checked_vector(target, n, "target"), checked_vector(previous, n, "previous"),
+            limit, rate_limit)
 
 
 def rate_limited_twist(target, previous, limit, rate_limit) -> np.ndarray:
