@@ -23,7 +23,7 @@ from pathlib import Path
 MODULES = ["wbc", "wbc.variables", "wbc.terms", "wbc.stack", "wbc.compiler", "wbc.workspace",
            "wbc.controller", "wbc.solution", "wbc.qp", "wbc.quantities", "wbc.infeasibility",
            "wbc.passes", "wbc.cbuild", "wbc.jit", "wbc.fused", "wbc.checks", "wbc.lie",
-           "wbc.errors", "wbc.sim", "wbc.tasks", "wbc.robots", "wbc.solvers",
+           "wbc.aliases", "wbc.errors", "wbc.sim", "wbc.tasks", "wbc.robots", "wbc.solvers",
            "wbc.solvers.reference", "wbc.papers", "wbc.experiments.studies.study"]
 ROLE = re.compile(r":(?:class|func|meth|mod|attr|data|exc|obj):`~?([^`]+)`")
 NAMEDTUPLE_LIMITATION = r"Error parsing type annotation .* for wbc\.robots\.\w+\.__init__\."

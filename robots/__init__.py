@@ -28,6 +28,8 @@ Layout, one concern a module:
   :mod:`~wbc.robots.kinova_gen3`).
 """
 
+from wbc.aliases import moved_names
+
 from .arms import Arm, arm_from_model, arm_from_urdf, panda, ur5, ur10
 from .catalogue import base_names, from_urdf, load, make_base, names
 from .differential import DifferentialDriveBase, tiago_base
@@ -101,21 +103,4 @@ __all__ += list(_MOVED)
 _MOVED_MODULES = ('steerable_control', 'omni_control', 'omni_dynamics')
 
 
-def __getattr__(name: str):
-    """A paper's controller or plant under its old name (see :data:`_MOVED`), imported on first
-    access."""
-    if name in _MOVED:
-        import importlib
-
-        value = getattr(importlib.import_module(_MOVED[name]), name)
-        globals()[name] = value  # later accesses skip this function
-        return value
-    if name in _MOVED_MODULES:  # ``wbc.<package>.<old module>`` without importing it first
-        import importlib
-
-        return importlib.import_module(f"{__name__}.{name}")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_MOVED))
+__getattr__, __dir__ = moved_names(__name__, _MOVED, _MOVED_MODULES)

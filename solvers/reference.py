@@ -53,6 +53,7 @@ from typing import cast
 
 import numpy as np
 
+from wbc.aliases import moved_names
 from wbc.checks import checked_2d, checked_scalar, checked_vector
 from wbc.errors import ShapeError
 
@@ -228,16 +229,4 @@ _MOVED = {name: f"wbc.papers.{where}" if where.endswith("_arm") else
 __all__ += list(_MOVED)
 
 
-def __getattr__(name: str):
-    """A paper's closed form (see :data:`_MOVED`), imported from its paper on first access."""
-    if name in _MOVED:
-        import importlib
-
-        value = getattr(importlib.import_module(_MOVED[name]), name)
-        globals()[name] = value  # later accesses skip this function
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_MOVED))
+__getattr__, __dir__ = moved_names(__name__, _MOVED)

@@ -1,5 +1,7 @@
 """The task library (``wbc.tasks``): every task turns itself into affine terms of a stack."""
 
+from wbc.aliases import moved_names
+
 from .frame import FrameTask
 from .limits import ConfigurationLimit, VelocityLimit
 from .linear import Bounds, LinearConstraint, LinearTask
@@ -30,20 +32,4 @@ __all__ += list(_MOVED)
 _MOVED_MODULES = ('task_sharing', 'torque_distribution', 'velocity_field')
 
 
-def __getattr__(name: str):
-    """A paper's task under its old name (see :data:`_MOVED`), imported on first access."""
-    if name in _MOVED:
-        import importlib
-
-        value = getattr(importlib.import_module(_MOVED[name]), name)
-        globals()[name] = value  # later accesses skip this function
-        return value
-    if name in _MOVED_MODULES:  # ``wbc.<package>.<old module>`` without importing it first
-        import importlib
-
-        return importlib.import_module(f"{__name__}.{name}")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_MOVED))
+__getattr__, __dir__ = moved_names(__name__, _MOVED, _MOVED_MODULES)

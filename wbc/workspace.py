@@ -238,13 +238,11 @@ class _BlockState:
             self.row_scale = np.ones(m + n)  # largest |entry| of each row in x
             self.qp = (self.Hr, self.gr, self.Ar, self.lAr, self.uAr, self.lbr, self.ubr)
         self.has_frozen_rows = bool(block.n_frozen_cost or block.n_frozen_soft)
-        self.frozen_rank = 0
         self.conflicting = False  # a row the levels above fix is violated (see _freeze)
         self.backend = backend
         self.ready = False  # backend.setup done
         self.warm: np.ndarray | None = None
         self.result: QPResult | None = None  # last backend result (multipliers included)
-
 
 
 class Workspace:
@@ -508,7 +506,6 @@ class Workspace:
         if implicit is not None:
             E = np.vstack((E, implicit))
         rank = _null_space(E, self.compiled.rank_tol, N)
-        state.frozen_rank = rank
         if rank == n and block.n_z == n:
             return -rank
         H, g, A, lA, uA = state.H, state.g, state.A, state.lA, state.uA

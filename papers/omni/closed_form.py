@@ -58,7 +58,10 @@ __all__ = ["DISTRIBUTION_METHODS", "friction_utilisation", "torque_distribution"
 DISTRIBUTION_METHODS = ("min_norm", "proportional", "minmax")
 
 
-def _wheel_jacobian(J) -> np.ndarray:
+def checked_wheel_jacobian(J) -> np.ndarray:
+    """``J`` checked as the ``(N, 3)`` wheel Jacobian of eq. 1 (wheel rates [rad/s] per platform
+    twist) of ``N >= 3`` wheels, of full column rank (every platform wrench producible); else a
+    :class:`~wbc.WbcError` naming ``J``."""
     J = checked_2d(J, "J")
     if J.shape[1] != 3 or J.shape[0] < 3:
         raise ShapeError(f"J must be the (N, 3) wheel Jacobian with N >= 3 wheels, got shape "
@@ -87,7 +90,7 @@ def torque_null_space(J) -> np.ndarray:
     Each column's sign is fixed (its largest-magnitude entry positive), so the basis is
     deterministic.
     """
-    J = _wheel_jacobian(J)
+    J = checked_wheel_jacobian(J)
     basis = np.linalg.svd(J.T)[2][3:].T
     signs = np.sign(basis[np.abs(basis).argmax(axis=0), np.arange(basis.shape[1])])
     return basis * signs
@@ -133,7 +136,7 @@ def torque_distribution(J, f_d, normal_forces, mu=1.0, method: str = "proportion
     """
     if method not in DISTRIBUTION_METHODS:
         raise InvalidValueError(f"method must be one of {DISTRIBUTION_METHODS}, got {method!r}")
-    J = _wheel_jacobian(J)
+    J = checked_wheel_jacobian(J)
     f_d = checked_vector(f_d, 3, "f_d", broadcast=False)
     w = 1.0 / _capacity(normal_forces, mu, J.shape[0])
     tau0 = pinv(J.T) @ f_d

@@ -34,10 +34,12 @@ import casadi as ca
 import numpy as np
 
 import wbc
-from wbc.checks import checked_array, checked_integer, checked_matrix, checked_name, checked_vector
+from wbc.checks import checked_array, checked_integer, checked_name, checked_vector
 from wbc.errors import InvalidValueError, ShapeError, WbcError
 from wbc.tasks.linear import LinearTask
 from wbc.terms import Cost, Equality, Inequality, Task
+
+from .closed_form import checked_wheel_jacobian
 
 __all__ = ["DISTRIBUTIONS", "FrictionUtilisation", "TorqueDistribution", "UtilisationBound",
            "WheelWrench", "distribution_stack"]
@@ -54,17 +56,6 @@ def _torques(stack, block: str, what: str) -> ca.SX:
     return stack.variables.symbol[stack.variables.slice(block)]
 
 
-def _wheel_jacobian(J) -> np.ndarray:
-    J = checked_matrix(J, "J")
-    if J.shape[1] != 3 or J.shape[0] < 3:
-        raise ShapeError(f"J must be the (N, 3) wheel Jacobian with N >= 3 wheels, got shape "
-                         f"{J.shape}")
-    if np.linalg.matrix_rank(J) < 3:
-        raise InvalidValueError("J must have full column rank 3 (otherwise some platform "
-                                "wrenches cannot be produced by the wheels)")
-    return J
-
-
 class WheelWrench(Task):
     """``Jᵀ τ = f_d``: the wheel torques produce the platform wrench ``f_d`` (eq. 5). Hard:
     add it with ``stack.constrain``.
@@ -77,7 +68,7 @@ class WheelWrench(Task):
     """
 
     def __init__(self, J, name: str = "wrench", block: str = "tau") -> None:
-        self.J = _wheel_jacobian(J)
+        self.J = checked_wheel_jacobian(J)
         self.name = checked_name(name, "name of WheelWrench")
         self.block = checked_name(block, f"block of WheelWrench {name!r}", optional=False)
 
@@ -171,7 +162,7 @@ def distribution_stack(J, method: str = "proportional", mu=1.0) -> wbc.Stack:
     """
     if not isinstance(method, str) or method not in DISTRIBUTIONS:
         raise InvalidValueError(f"method must be one of {DISTRIBUTIONS}, got {method!r}")
-    J = _wheel_jacobian(J)
+    J = checked_wheel_jacobian(J)
     n = J.shape[0]
     mu = _friction_coefficients(mu, n)
     blocks = {"tau": n, "t": 1} if method == "minmax" else {"tau": n}
