@@ -18,6 +18,11 @@ Layout, one concern a module:
   the immutable model); :mod:`~wbc.robots.manipulator` (:class:`MobileManipulator`) and
   :mod:`~wbc.robots.fixed_base` (:class:`FixedBaseRobot`, :func:`load_panda`) specialise it;
 * :mod:`~wbc.robots.model_assembly` — the whole-body pinocchio model from base + arm + mount;
+* :mod:`~wbc.robots.floating_base` — :class:`FloatingBaseRobot`, a robot on a free-flyer root
+  (humanoids, quadrupeds); :mod:`~wbc.robots.whole_body` — whole-robot URDFs on any root
+  (``from_urdf(path, root="free_flyer" | "planar" | "fixed" | <base>)``, wheels recognised);
+* :mod:`~wbc.robots.collision` — :class:`CollisionModel` (the URDF's collision geometry, SRDF
+  pairs, static :class:`Obstacle` s; distances and normal Jacobians with coal);
 * :mod:`~wbc.robots.symbolic` — the hand-written CasADi kinematics (why, and which joints);
 * :mod:`~wbc.robots.model_quantities` — the quantity registry every robot offers;
 * :mod:`~wbc.robots.manipulability` — ``det(J Jᵀ)`` and its analytic gradient;
@@ -32,8 +37,10 @@ from wbc.aliases import moved_names
 
 from .arms import Arm, arm_from_model, arm_from_urdf, panda, ur5, ur10
 from .catalogue import base_names, from_urdf, load, make_base, names
+from .collision import CollisionModel, Obstacle
 from .differential import DifferentialDriveBase, tiago_base
 from .fixed_base import FixedBaseRobot, load_panda
+from .floating_base import FloatingBaseRobot
 from .kinova_gen3 import kinova_gen3
 from .kuka_lwr4 import kuka_lwr4
 from .limits import Limits
@@ -41,7 +48,7 @@ from .manipulator import MobileManipulator
 from .mecanum import MecanumBase, mecanum_base
 from .omni import OmniBase, omni4_octagon
 from .pinocchio_robot import PinocchioRobot
-from .planar_base import PlanarBase
+from .planar_base import PlanarBase, PlanarRoot
 from .protocol import Robot, SymbolicRobot
 from .reduced import ReducedPanda
 from .resources import robots_dir, urdf_path
@@ -50,14 +57,18 @@ from .views import column_major_view
 
 __all__ = [
     "Arm",
+    "CollisionModel",
     "DifferentialDriveBase",
     "FixedBaseRobot",
+    "FloatingBaseRobot",
     "Limits",
     "MecanumBase",
     "MobileManipulator",
+    "Obstacle",
     "OmniBase",
     "PinocchioRobot",
     "PlanarBase",
+    "PlanarRoot",
     "ReducedPanda",
     "Robot",
     "SteerableBase",

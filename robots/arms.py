@@ -139,37 +139,47 @@ def _scalar_joint_model(joint) -> tuple[object, bool]:
 
 
 def _with_scalar_joints(model: pin.Model) -> tuple[pin.Model, np.ndarray]:
-    """Copy of ``model`` with continuous joints made plain revolute joints.
+    """Copy of ``model`` with continuous joints made plain revolute joints; a free-flyer root
+    (joint 1, what a whole-robot URDF loaded with ``root="free_flyer"`` has) is kept as is.
 
     Returns:
-        The copy and a boolean mask, per velocity index, of the joints that were unbounded.
+        The copy and a boolean mask, per configuration index, of the entries of joints that
+        were unbounded (``nq == nv`` after the root).
     """
-    if model.nq == model.nv:
-        return model, np.zeros(model.nv, dtype=bool)
+    def kept(j: int) -> bool:
+        return j == 1 and model.joints[j].shortname() == "JointModelFreeFlyer"
+
+    if all(kept(j) or (model.joints[j].nq == 1 and model.joints[j].nv == 1)
+           for j in range(1, model.njoints)):
+        return model, np.zeros(model.nq, dtype=bool)
     out = pin.Model()
     out.name = model.name
-    unbounded = []
+    unbounded: list[bool] = []
     for j in range(1, model.njoints):
-        joint, was_unbounded = _scalar_joint_model(model.joints[j])
-        idx_q = model.joints[j].idx_q
+        source = model.joints[j]
+        if kept(j):
+            joint, was_unbounded = source, False
+        else:
+            joint, was_unbounded = _scalar_joint_model(source)
+        nq, nv = (source.nq, source.nv) if kept(j) else (1, 1)
+        idx_q, idx_v = source.idx_q, source.idx_v
         if was_unbounded:
             lower, upper = np.array([-np.inf]), np.array([np.inf])
         else:
-            lower = model.lowerPositionLimit[idx_q : idx_q + 1].copy()
-            upper = model.upperPositionLimit[idx_q : idx_q + 1].copy()
-        idx_v = model.joints[j].idx_v
+            lower = model.lowerPositionLimit[idx_q : idx_q + nq].copy()
+            upper = model.upperPositionLimit[idx_q : idx_q + nq].copy()
         new = out.addJoint(
             int(model.parents[j]),
             joint,
             model.jointPlacements[j],
             model.names[j],
-            model.effortLimit[idx_v : idx_v + 1].copy(),
-            model.velocityLimit[idx_v : idx_v + 1].copy(),
+            model.effortLimit[idx_v : idx_v + nv].copy(),
+            model.velocityLimit[idx_v : idx_v + nv].copy(),
             lower,
             upper,
         )
         out.appendBodyToJoint(new, model.inertias[j], pin.SE3.Identity())
-        unbounded.append(was_unbounded)
+        unbounded.extend([was_unbounded] * nq)
     out.inertias[0] = model.inertias[0]
     for frame in list(model.frames)[1:]:
         out.addFrame(pin.Frame(frame), False)
@@ -195,9 +205,10 @@ def _unambiguous_frames(model: pin.Model) -> pin.Model:
     return model
 
 
-def load_urdf_model(path: str) -> pin.Model:
-    """``pin.buildModelFromUrdf(path)``, or one :class:`~wbc.ModelLoadError` naming the file
-    and the parser's reason. urdfdom writes its reasons to the C-level stderr (file
+def load_urdf_model(path: str, free_flyer: bool = False) -> pin.Model:
+    """``pin.buildModelFromUrdf(path)`` (with a ``JointModelFreeFlyer`` root joint when
+    ``free_flyer``), or one :class:`~wbc.ModelLoadError` naming the file and the parser's
+    reason. urdfdom writes its reasons to the C-level stderr (file
     descriptor 2, out of reach of ``sys.stderr``): they are captured there and put in the
     message instead of being printed."""
     if not os.path.isfile(path):
@@ -206,7 +217,8 @@ def load_urdf_model(path: str) -> pin.Model:
         saved = os.dup(2)
         os.dup2(captured.fileno(), 2)
         try:
-            model = pin.buildModelFromUrdf(path)
+            model = (pin.buildModelFromUrdf(path, pin.JointModelFreeFlyer()) if free_flyer
+                     else pin.buildModelFromUrdf(path))
             reason = ""
         except ValueError as err:  # pinocchio's words: "does not contain a valid URDF model"
             model, reason = None, str(err)

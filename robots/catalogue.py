@@ -40,6 +40,7 @@ from .kuka_lwr4 import kuka_lwr4
 from .manipulator import MobileManipulator
 from .mecanum import mecanum_base
 from .omni import omni4_octagon
+from .pinocchio_robot import PinocchioRobot
 from .planar_base import PlanarBase
 from .steerable import mpo700
 
@@ -124,10 +125,19 @@ def make_base(name: str) -> PlanarBase:
     return factory()
 
 
+class _DefaultBase(str):
+    """from_urdf's default base name: a distinct object, so that ``base is _DEFAULT_BASE``
+    tells "not given" from an explicit ``base="mecanum"``."""
+
+
+_DEFAULT_BASE = _DefaultBase("mecanum")
+
+
 def from_urdf(
     urdf: str | os.PathLike[str] | Arm,
-    base: str | PlanarBase = "mecanum",
+    base: str | PlanarBase = _DEFAULT_BASE,
     *,
+    root: str | PlanarBase | None = None,
     ee_frame: str | None = None,
     mount=None,
     name: str | None = None,
@@ -135,12 +145,26 @@ def from_urdf(
     v_max=None,
     a_max=None,
     home=None,
-) -> MobileManipulator:
-    """Put an arm of your own (a URDF file) on one of the bases.
+) -> PinocchioRobot:
+    """Put an arm of your own (a URDF file) on one of the bases — or, with ``root``, load a
+    whole robot (a humanoid, a quadruped, a mobile manipulator with its wheels) on any root.
+
+    Two uses:
+
+    * ``from_urdf(arm_urdf, base="mecanum", ee_frame=..., mount=...)`` — an arm URDF mounted on
+      a base (default ``"mecanum"``): a :class:`MobileManipulator`;
+    * ``from_urdf(robot_urdf, root=..., ee_frame=None, ...)`` — a whole-robot URDF with
+      ``root`` one of ``"fixed"``, ``"free_flyer"``, ``"planar"`` or a base name: see
+      :func:`wbc.robots.whole_body.robot_from_urdf` (wheels recognised as the base's, continuous
+      joints accepted; ``home`` is then a whole configuration; ``mount`` is not used).
+
+    Every robot loaded from a file records it as ``robot.urdf_path``.
 
     Args:
         urdf: path of the arm's URDF (or an already built :class:`~wbc.robots.arms.Arm`).
-        base: a base name (see :func:`base_names`) or a base model.
+        base: a base name (see :func:`base_names`) or a base model (default ``"mecanum"``;
+            not with ``root``).
+        root: the root of a whole-robot URDF (see above).
         ee_frame: the URDF frame (link or joint name) used as ``"ee"``; when a link and a joint
             share the name, ``"link:<name>"`` or ``"joint:<name>"`` (see
             :mod:`wbc.robots.arms`).
@@ -161,6 +185,25 @@ def from_urdf(
                                  base="omni", ee_frame="tool0", mount=mount)
         robot.frame_pose(robot.neutral(), "ee")
     """
+    if root is not None:
+        from .whole_body import ROOTS, robot_from_urdf  # loaded when first needed
+
+        if base is not _DEFAULT_BASE or mount is not None:
+            raise InvalidValueError("from_urdf: give either root= (a whole-robot URDF) or "
+                                    "base= / mount= (an arm on a base), not both")
+        if isinstance(urdf, Arm):
+            raise InvalidValueError("from_urdf: root= needs a URDF path, got an Arm")
+        if isinstance(root, str) and root in _BASES:
+            root_model: str | PlanarBase = make_base(root)
+        elif isinstance(root, PlanarBase) or root in ROOTS:
+            root_model = root
+        else:
+            raise UnknownNameError(f"unknown root {root!r}; use one of "
+                                   f"{[*ROOTS, *base_names()]} or a PlanarBase"[:300])
+        return robot_from_urdf(urdf, root_model, root_name=root if isinstance(root, str)
+                               else None, ee_frame=ee_frame, name=name,
+                               locked_joints=locked_joints, home=home, v_max=v_max,
+                               a_max=a_max)
     if not isinstance(base, (str, PlanarBase)):
         raise InvalidValueError(f"base must be a base name ({base_names()}) or a PlanarBase, "
                                 f"got {base!r}"[:160])
@@ -178,4 +221,8 @@ def from_urdf(
         arm = arm_from_urdf(
             urdf, ee_frame, locked_joints=locked_joints, v_max=v_max, a_max=a_max, home=home
         )
-    return MobileManipulator(base_model, arm, mount, ee_frame=ee_frame, name=name)
+    robot = MobileManipulator(base_model, arm, mount, ee_frame=ee_frame, name=name)
+    if not isinstance(urdf, Arm):
+        robot.urdf_path = os.fspath(urdf)
+        robot.locked_joints = tuple(locked_joints)
+    return robot

@@ -1,8 +1,12 @@
 """`PinocchioRobot`: the numeric and symbolic kinematics every wbc robot shares.
 
-One class serves both shapes of robot: an arm on a planar wheeled base
-(:class:`~wbc.robots.manipulator.MobileManipulator`) and a fixed-base arm
-(:class:`~wbc.robots.fixed_base.FixedBaseRobot`), the special case without base.
+One class serves three kinds of root: an arm on a planar wheeled base
+(:class:`~wbc.robots.manipulator.MobileManipulator`, ``root == "planar"``), a fixed-base arm
+(:class:`~wbc.robots.fixed_base.FixedBaseRobot`, ``root == "fixed"``), the special case without
+base, and a free-floating robot — a humanoid, a quadruped —
+(:class:`~wbc.robots.floating_base.FloatingBaseRobot`, ``root == "free_flyer"``), whose
+subclass overrides what the free flyer changes. Whole-robot URDFs load with any of the three
+through :func:`wbc.robots.from_urdf` (``root=...``, :mod:`wbc.robots.whole_body`).
 
 Coordinates
 -----------
@@ -17,6 +21,18 @@ then the arm joints [rad or m]; for a fixed base, the joints only. The velocity 
 with ``H(θ) = Rz(θ) B`` of the base model (:class:`~wbc.robots.planar_base.PlanarBase`); a fixed
 base has ``S = I``.
 
+A **free-flyer root** (pinocchio's ``JointModelFreeFlyer``) has ``nq_base = 7`` configuration
+entries — the root body's position ``x, y, z`` [m] in the world and its orientation as a unit
+quaternion ``q_x, q_y, q_z, q_w`` (pinocchio's order) — and ``nv_base = 6`` velocity entries:
+the root body's linear velocity [m/s] and angular velocity [rad/s], both in the **root body's
+axes** (pinocchio's own convention, the free-floating counterpart of the planar bases' "base
+frame" velocities). ``v`` is then pinocchio's own velocity: the Jacobians over ``v`` are
+pinocchio's (no ``S`` in them), :meth:`integrate` and :meth:`difference` are pinocchio's
+Lie-group ``integrate`` / ``difference``, and ``q̇ = S(q) v`` with ``S =
+blockdiag(R, ½ Q(quat), I)`` is used only by the symbolic drifts
+(:func:`wbc.robots.symbolic.free_flyer_rate`). The joints after the root (``n_arm = nv − 6``
+of them, each 1-DoF) are what posture tasks and joint limits act on.
+
 Frames and Jacobians
 --------------------
 Every frame of the model is available by name (:attr:`PinocchioRobot.frame_names`, aliases such
@@ -26,7 +42,8 @@ as ``"ee"`` included) or by index. ``frame_jacobian(q, frame, reference)`` retur
 * ``reference="world"``: pinocchio's ``LOCAL_WORLD_ALIGNED`` — the linear velocity of the
   frame's **origin** and the angular velocity, both in **world axes**;
 * ``reference="base"``: the same twist expressed in the **base frame's axes**,
-  ``blockdiag(Rᵀ, Rᵀ) J_world`` with ``R = Rz(θ)`` (world axes for a fixed base);
+  ``blockdiag(Rᵀ, Rᵀ) J_world`` with ``R = Rz(θ)`` (world axes for a fixed base; the root
+  body's full rotation for a free flyer);
 * ``reference="local"``: the same twist in the **frame's own axes** (pinocchio ``LOCAL``).
 
 ``frame_drift`` returns ``J̇ v = d/dt (J v)`` at ``v̇ = 0`` for the Jacobian of the same
@@ -86,12 +103,16 @@ from .symbolic import (
     symbolic_frame_kinematics,
 )
 
-__all__ = ["PinocchioRobot", "REFERENCES"]
+__all__ = ["FREE_FLYER_CONFIGURATION", "FREE_FLYER_VELOCITY", "PinocchioRobot", "REFERENCES"]
 
 REFERENCES = ("world", "base", "local")
 """The axes a Jacobian or drift can be expressed in (see the module docstring)."""
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _BASE_NQ = 3  # configuration entries of a planar base: x, y, θ
+_FREE_FLYER_NQ, _FREE_FLYER_NV = 7, 6  # x, y, z, quaternion; linear, angular velocity
+#: names of a free flyer's configuration and velocity entries (velocity in the root's axes)
+FREE_FLYER_CONFIGURATION = ("x", "y", "z", "qx", "qy", "qz", "qw")
+FREE_FLYER_VELOCITY = ("vx", "vy", "vz", "wx", "wy", "wz")
 
 
 class PinocchioRobot:
@@ -107,8 +128,11 @@ class PinocchioRobot:
         name: robot name.
         limits: position limits over ``q``, velocity and acceleration limits over ``v``.
         home: the configuration :meth:`neutral` returns.
-        base: the planar base model, ``None`` for a fixed base.
+        base: the planar base model, ``None`` for a fixed base or a free flyer.
         aliases: extra frame names, ``alias -> model frame name``.
+        root: ``"free_flyer"`` when the model's first joint is a ``JointModelFreeFlyer`` (what
+            :class:`~wbc.robots.floating_base.FloatingBaseRobot` passes); otherwise ``None``
+            (``"planar"`` with a base, ``"fixed"`` without).
 
     Frames several of which share a name (a URDF link and joint of the same name) are known
     only as ``"<kind>:<name>"`` (``"link:tool0"``, ``"joint:tool0"``, see
@@ -119,18 +143,43 @@ class PinocchioRobot:
         UnknownNameError: an alias names no frame.
     """
 
+    #: the URDF file the robot was built from (``None`` for a model built in code); the
+    #: collision helpers read the geometry from it
+    urdf_path: str | None = None
+    #: URDF joints removed from the model (locked at a value), e.g. gripper fingers or the
+    #: wheels of a whole-robot URDF (:mod:`wbc.robots.whole_body`)
+    locked_joints: tuple[str, ...] = ()
+    #: the locked joints that were a whole-robot URDF's wheels (:mod:`wbc.robots.whole_body`)
+    wheel_joints: tuple[str, ...] = ()
+
     def __init__(self, model: pin.Model, *, name: str, limits: Limits, home,
-                 base: PlanarBase | None = None, aliases: Mapping[str, str] | None = None
-                 ) -> None:
+                 base: PlanarBase | None = None, aliases: Mapping[str, str] | None = None,
+                 root: str | None = None) -> None:
         check_joints(model, f"robot {name!r}")
         self.model = model
         self.name = name
         self.base = base
-        self.nq_base = 0 if base is None else _BASE_NQ
-        self.nv_base = 0 if base is None else base.nv
+        if root == "free_flyer":
+            if base is not None or model.njoints < 2 or \
+                    model.joints[1].shortname() != "JointModelFreeFlyer":
+                raise ShapeError(f"robot {name!r}: root='free_flyer' needs a model whose "
+                                 f"first joint is a JointModelFreeFlyer, and no planar base")
+            self.root = "free_flyer"
+            self.nq_base, self.nv_base, self._root_joints = _FREE_FLYER_NQ, _FREE_FLYER_NV, 1
+        elif root is None:
+            self.root = "fixed" if base is None else "planar"
+            self.nq_base = 0 if base is None else _BASE_NQ
+            self.nv_base = 0 if base is None else base.nv
+            self._root_joints = self.nq_base  # x, y, θ: three scalar joints
+        else:
+            raise UnknownNameError(f"robot {name!r}: root must be 'free_flyer' or None, got "
+                                   f"{root!r}")
         self.nq = model.nq
         self.n_arm = model.nq - self.nq_base
         self.nv = self.nv_base + self.n_arm
+        # pinocchio's velocity index of the first joint after the root (3 for a planar base,
+        # whose pinocchio velocity is q̇; 6 for a free flyer; 0 for a fixed base)
+        self._arm_v0 = model.nv - self.n_arm
         self.limits = limits
         if limits.nq != self.nq or limits.nv != self.nv:
             raise ShapeError(f"robot {name!r}: limits of sizes nq = {limits.nq}, nv = "
@@ -148,18 +197,21 @@ class PinocchioRobot:
                 self._frame_ids[frame.name] = index
         for alias, target in (aliases or {}).items():
             self._frame_ids[alias] = self.frame_id(target)
-        base_names = "x, y, theta, " if base is not None else ""
-        base_rates = ", ".join(base.velocity_names) + ", " if base is not None else ""
+        base_names = "".join(f"{n}, " for n in self.configuration_names[: self.nq_base])
+        base_rates = "".join(f"{n}, " for n in self.velocity_names[: self.nv_base])
         self._layouts = (f"{base_names}{self.n_arm} joints", f"{base_rates}{self.n_arm} joints")
         self._home = self._check_q(home).copy()
-        self._ancestors = _manipulability.ancestor_mask(model, self.nq_base, self.n_arm)
+        self._ancestors = _manipulability.ancestor_mask(model, self._arm_v0, self.n_arm)
         self._body_kind = self._kind_of_base()
         # compiled CasADi functions, by (kind, frame id); immutable, so shared by clones
         self._symbolic: dict[tuple[str, int], ca.Function] = {}
         self._allocate()
 
     def _kind_of_base(self) -> str:
-        """Which fast path :meth:`update` takes for ``S(q)`` (element writes, hot path)."""
+        """Which fast path :meth:`update` takes for ``S(q)`` (element writes, hot path); a free
+        flyer's is its own :meth:`~wbc.robots.floating_base.FloatingBaseRobot.update`."""
+        if self.root == "free_flyer":
+            return "free_flyer"
         if self.base is None:
             return "fixed"
         body = self.base.body_map
@@ -207,16 +259,20 @@ class PinocchioRobot:
     @property
     def joint_names(self) -> list[str]:
         """Names of the joints after the base, in configuration order."""
-        return list(self.model.names)[1 + self.nq_base:]
+        return list(self.model.names)[1 + self._root_joints:]
 
     @property
     def configuration_names(self) -> list[str]:
         """Names of the entries of ``q``."""
+        if self.root == "free_flyer":
+            return [*FREE_FLYER_CONFIGURATION, *self.joint_names]
         return [*(("x", "y", "theta") if self.base is not None else ()), *self.joint_names]
 
     @property
     def velocity_names(self) -> list[str]:
         """Names of the entries of ``v``."""
+        if self.root == "free_flyer":
+            return [*FREE_FLYER_VELOCITY, *self.joint_names]
         base = self.base.velocity_names if self.base is not None else ()
         return [*base, *self.joint_names]
 
@@ -260,6 +316,18 @@ class PinocchioRobot:
         base = (rng.uniform([-base_range, -base_range, -math.pi], [base_range, base_range, math.pi])
                 if self.base is not None else ())
         return np.concatenate([base, rng.uniform(lower, upper)])
+
+    def difference(self, q0, q1) -> np.ndarray:
+        """The tangent vector from ``q0`` to ``q1``: pinocchio's Lie-group ``difference``, of
+        size ``model.nv``, so that ``pin.integrate(model, q0, d) == q1``.
+
+        For a fixed base and a free flyer this is in the robot's velocity coordinates (for the
+        free flyer ``integrate(q0, d, 1.0) == q1``). For a planar base it is over pinocchio's
+        scalar root joints — the world pose differences ``(Δx [m], Δy [m], Δθ [rad])``, then
+        the joints — not over the base's own velocity coordinates, which a differential drive
+        cannot always realise.
+        """
+        return pin.difference(self.model, self._check_q(q0), self._check_q(q1))
 
     def integrate(self, q, v, dt: float) -> np.ndarray:
         """Configuration after ``dt`` [s] at constant ``v``.
@@ -571,6 +639,16 @@ class PinocchioRobot:
         return ca.horzcat(matrix[:, :3] @ pose_rate_matrix(q[2], self.base.body_map),
                           matrix[:, 3:])
 
+    def _symbolic_base_axes(self, q: ca.SX) -> ca.SX | None:
+        """``Rᵀ`` (3 × 3) of the base frame's rotation ``R = Rz(θ)`` as a CasADi expression of
+        ``q`` (``None`` for a fixed base: world axes), for the ``J_base`` quantity."""
+        if self.base is None:
+            return None
+        c, s = ca.cos(q[2]), ca.sin(q[2])
+        rt = ca.SX(3, 3)
+        rt[0, 0], rt[0, 1], rt[1, 0], rt[1, 1], rt[2, 2] = c, s, -s, c, 1
+        return rt
+
     def _symbolic_configuration_rate(self, q: ca.SX, v: ca.SX) -> ca.SX:
         """``q̇ = S(q) v``: base pose rates ``H(θ) v_b`` [m/s, m/s, rad/s], joint rates as is."""
         nb, base = self.nv_base, self.base
@@ -589,7 +667,7 @@ class PinocchioRobot:
         """
         fid = self.frame_id(frame)
         # differentiating J_pin S (not J_pin alone) along q̇ = S v gives the Ṡ v term
-        rate = None if self.base is None else self._symbolic_configuration_rate
+        rate = None if self.root == "fixed" else self._symbolic_configuration_rate
         return self._cached("drift", fid,
                             lambda: symbolic_frame_drift(self.symbolic_frame(fid), rate))
 
@@ -640,7 +718,7 @@ class PinocchioRobot:
         """Arm Jacobian ``J`` (6 × n_arm, LOCAL_WORLD_ALIGNED) and ``∂J/∂q_k``
         (n_arm × 6 × n_arm) at the last update."""
         return _manipulability.arm_jacobian_derivatives(
-            self.model, self.data, self.frame_id(frame), self.nq_base, self._ancestors)
+            self.model, self.data, self.frame_id(frame), self._arm_v0, self._ancestors)
 
     def manipulability(self, q=None, frame: str | int = "ee") -> float:
         """Yoshikawa's measure ``det(J Jᵀ)`` of the arm.
@@ -651,7 +729,7 @@ class PinocchioRobot:
         """
         self._ensure(q)
         jac = pin.getFrameJacobian(self.model, self.data, self.frame_id(frame), _LWA)
-        return _manipulability.manipulability(jac[:, self.nq_base:])
+        return _manipulability.manipulability(jac[:, self._arm_v0:])
 
     def manipulability_gradient(
         self, q=None, frame: str | int = "ee", out: np.ndarray | None = None

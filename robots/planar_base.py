@@ -25,7 +25,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 import pinocchio as pin
 
-__all__ = ["PlanarBase", "HOLONOMIC_MAP", "UNICYCLE_MAP"]
+__all__ = ["PlanarBase", "PlanarRoot", "HOLONOMIC_MAP", "UNICYCLE_MAP"]
 
 #: body map ``B`` of holonomic bases: the velocity coordinates are the body twist.
 HOLONOMIC_MAP = np.eye(3)
@@ -205,6 +205,36 @@ class PlanarBase(ABC):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r}, velocity={self.velocity_names})"
+
+
+class PlanarRoot(PlanarBase):
+    """A holonomic planar root without wheels and without velocity or acceleration limits:
+    what ``wbc.robots.from_urdf(path, root="planar")`` puts under a whole-robot URDF.
+
+    Its velocity coordinates are the body twist ``(v_x [m/s], v_y [m/s], ω [rad/s])`` in the
+    base frame (``B = I``). It has no wheel kinematics: :meth:`forward` and :meth:`inverse` are
+    the identity on the body twist. The body (mass [kg], centre of mass [m] and rotational
+    inertia [kg m²] in the base frame) is the URDF's root link's.
+    """
+
+    velocity_names = ("vx", "vy", "omega")
+    holonomic = True
+    body_map = HOLONOMIC_MAP
+    n_wheels = 0
+
+    def __init__(self, name: str = "planar", mass: float = 0.0, com=(0.0, 0.0, 0.0),
+                 inertia=None) -> None:
+        inertia = np.zeros((3, 3)) if inertia is None else inertia
+        inf = np.full(3, np.inf)
+        super().__init__(name, mass, com, inertia, inf, inf.copy())
+
+    def forward(self, body_twist) -> np.ndarray:  # type: ignore[override]
+        """The body twist ``(v_x, v_y, ω)`` itself (no wheels)."""
+        return np.array(body_twist, dtype=float)
+
+    def inverse(self, base_velocity) -> np.ndarray:  # type: ignore[override]
+        """The body twist ``(v_x, v_y, ω)`` itself (no wheels)."""
+        return np.array(base_velocity, dtype=float)
 
 
 def box_inertia(mass: float, size_x: float, size_y: float, size_z: float) -> np.ndarray:

@@ -3,8 +3,10 @@
 :class:`Robot` is a runtime-checkable :class:`typing.Protocol`; any object with these members
 is a robot (``isinstance(obj, Robot)`` checks that the members exist, not their signatures;
 the conformance suite ``tests/test_robot_protocol.py`` checks the behaviour of the library's
-robots). The robots of :mod:`wbc.robots` (the catalogue's mobile manipulators and
-:class:`~wbc.robots.FixedBaseRobot`) implement it through
+robots). The robots of :mod:`wbc.robots` (the catalogue's mobile manipulators,
+:class:`~wbc.robots.FixedBaseRobot`, the free-flyer
+:class:`~wbc.robots.floating_base.FloatingBaseRobot` and the whole-robot URDFs of
+:mod:`wbc.robots.whole_body`) implement it through
 :class:`~wbc.robots.pinocchio_robot.PinocchioRobot`.
 :class:`SymbolicRobot` adds the optional CasADi forms that ``kinematics="compiled"`` uses.
 
@@ -33,7 +35,9 @@ class Robot(Protocol):
     Attributes:
         name: a label for messages and reports.
         nq: size of the configuration ``q``.
-        nv: size of the velocity coordinates ``v`` (``nq − 1`` for a differential drive base).
+        nv: size of the velocity coordinates ``v`` (``nq − 1`` for a differential drive base
+            and for a free-flyer root, whose 7 configuration entries — position and unit
+            quaternion — have 6 velocity entries, the root's twist in its own axes).
         limits: position limits over ``q``, velocity / acceleration limits over ``v``.
         quantities: the model quantities the robot offers the controller (``pose[<frame>]``,
             ``J[<frame>]``, ``Jdot_v[<frame>]``, ``com``, …).
@@ -61,7 +65,8 @@ class Robot(Protocol):
 
     def integrate(self, q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
         """The configuration after ``dt`` [s] at constant velocity ``v``, on the configuration
-        manifold."""
+        manifold (for a free flyer pinocchio's Lie-group ``integrate``: the quaternion stays a
+        unit quaternion)."""
 
     def update(self, q: np.ndarray, v: np.ndarray | None = None) -> None:
         """One kinematics update at ``q`` (and ``v``, for drifts) that the getters then read."""

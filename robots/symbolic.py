@@ -12,11 +12,22 @@ Supported joints
 ----------------
 1-DoF **revolute** and **prismatic** joints, with an axis along x, y or z of the joint frame
 (``JointModelRX`` … ``JointModelPZ``) or any unit axis (``JointModelRevoluteUnaligned``,
-``JointModelPrismaticUnaligned``). Every other joint type (spherical, free-flyer, planar,
-helical, unbounded revolute, mimic, …) is refused by :func:`check_joints`, which the robots
-call when they are built — an unsupported joint is a :class:`~wbc.WbcError` at load time, never
-a wrong Jacobian later. (The arms of :mod:`wbc.robots.arms` turn URDF ``continuous`` joints into
+``JointModelPrismaticUnaligned``), and a **free-flyer root** (``JointModelFreeFlyer`` as the
+first joint, attached to the universe; see below). Every other joint type (spherical, planar,
+helical, unbounded revolute, mimic, a free flyer elsewhere, …) is refused by
+:func:`check_joints`, which the robots call when they are built — an unsupported joint is a
+:class:`~wbc.WbcError` at load time, never a wrong Jacobian later. (The URDF loaders of
+:mod:`wbc.robots.arms` and :mod:`wbc.robots.whole_body` turn URDF ``continuous`` joints into
 plain revolute joints first.)
+
+Free-flyer root. Its configuration is pinocchio's ``(x, y, z, q_x, q_y, q_z, q_w)`` — position
+[m] and unit quaternion of the root body in the world — and its velocity pinocchio's
+``(v, ω)``: the root's linear and angular velocity in the **root body's axes**. The rotation is
+built from the *normalised* quaternion (equal to pinocchio's at a unit quaternion). Its six
+Jacobian columns for a frame at ``p_f`` are, with ``R``, ``p`` the root's world rotation and
+position, ``[R, −[p_f − p]× R]`` (linear rows) and ``[0, R]`` (angular rows).
+:func:`free_flyer_rate` is the configuration rate ``q̇(q, v)`` the drifts differentiate along
+(``ṗ = R v``, ``q̇uat = ½ quat ⊗ (ω, 0)``).
 
 Conventions
 -----------
@@ -40,6 +51,8 @@ from wbc.errors import ShapeError, WbcError
 
 __all__ = [
     "check_joints",
+    "free_flyer_rate",
+    "quaternion_rotation",
     "symbolic_center_of_mass",
     "function_name",
     "pose_rate_matrix",
@@ -51,9 +64,16 @@ _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 _UNALIGNED = ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned")
 
 
-def _joint_kind(joint) -> tuple[str, np.ndarray] | None:
-    """``("R" | "P", unit axis in the joint frame)`` of a supported joint, else ``None``."""
+_FREE_FLYER = "JointModelFreeFlyer"
+
+
+def _joint_kind(joint) -> tuple[str, np.ndarray | None] | None:
+    """``("R" | "P", unit axis in the joint frame)`` of a supported 1-DoF joint, ``("F",
+    None)`` of a free flyer (supported as the root only, see :func:`check_joints`), else
+    ``None``."""
     name = joint.shortname()
+    if name == _FREE_FLYER:
+        return "F", None
     if name in _UNALIGNED:
         axis = np.asarray(joint.extract().axis, dtype=float)
         return name[10], axis / np.linalg.norm(axis)
@@ -66,10 +86,52 @@ def check_joints(model: pin.Model, what: str = "robot") -> None:
     """Raise :class:`~wbc.WbcError` naming every joint of ``model`` the symbolic kinematics do
     not support (see the module docstring); ``what`` names the robot in the message."""
     bad = [f"{model.names[j]} ({model.joints[j].shortname()})"
-           for j in range(1, model.njoints) if _joint_kind(model.joints[j]) is None]
+           for j in range(1, model.njoints) if not _supported(model, j)]
     if bad:
         raise WbcError(f"{what}: unsupported joints {bad}; wbc robots support 1-DoF revolute "
-                       f"and prismatic joints (aligned or unaligned axes) only")
+                       f"and prismatic joints (aligned or unaligned axes) and a free-flyer "
+                       f"root (the first joint, on the universe) only")
+
+
+def _supported(model: pin.Model, j: int) -> bool:
+    """Whether joint ``j`` is supported where it is (a free flyer as the root only)."""
+    kind = _joint_kind(model.joints[j])
+    if kind is None:
+        return False
+    return kind[0] != "F" or (j == 1 and model.parents[j] == 0)
+
+
+def quaternion_rotation(quaternion: ca.SX) -> ca.SX:
+    """Rotation matrix (3 × 3) of a quaternion ``(x, y, z, w)`` (pinocchio's order), normalised
+    first, so that the result is a rotation for any non-zero quaternion."""
+    x, y, z, w = (quaternion[i] for i in range(4))
+    n2 = x * x + y * y + z * z + w * w
+    s = 2.0 / n2  # 2 / |quat|²: the normalisation, folded into the products
+    R = ca.SX(3, 3)
+    R[0, 0], R[0, 1], R[0, 2] = 1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)
+    R[1, 0], R[1, 1], R[1, 2] = s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w)
+    R[2, 0], R[2, 1], R[2, 2] = s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y)
+    return R
+
+
+def free_flyer_rate(q: ca.SX, v: ca.SX) -> ca.SX:
+    """``q̇ = S(q) v`` (nq × 1) of a model whose root is a free flyer and whose other joints are
+    1-DoF: position rate ``R v_lin`` [m/s] (``R`` the root's rotation), quaternion rate
+    ``½ quat ⊗ (ω, 0)`` [1/s] (``ω`` in the root's axes), then the joint rates as they are."""
+    quat = q[3:7]
+    u, w = quat[:3], quat[3]
+    omega = v[3:6]
+    return ca.vertcat(quaternion_rotation(quat) @ v[:3],
+                      0.5 * (w * omega + ca.cross(u, omega)),
+                      -0.5 * ca.dot(u, omega),
+                      v[6:])
+
+
+def _skew(p: ca.SX) -> ca.SX:
+    """``[p]×`` (3 × 3), so that ``[p]× a = p × a``."""
+    K = ca.SX(3, 3)
+    K[0, 1], K[0, 2], K[1, 0], K[1, 2], K[2, 0], K[2, 1] = -p[2], p[1], p[2], -p[0], -p[1], p[0]
+    return K
 
 
 def function_name(prefix: str, frame_name: str) -> str:
@@ -93,13 +155,21 @@ def _forward(model: pin.Model, q: ca.SX, joints: list[int]):
     for j in joints:
         joint, M = model.joints[j], model.jointPlacements[j]
         kind_axis = _joint_kind(joint)
-        if kind_axis is None:
+        if kind_axis is None or not _supported(model, j):
             check_joints(model, model.name or "model")  # raises, naming the joint
             raise AssertionError(f"joint {j} is not supported, yet check_joints passed")
         kind, axis = kind_axis
         R, p = poses[model.parents[j]]
         p = p + R @ ca.DM(M.translation)
         R = R @ ca.DM(M.rotation)
+        if kind == "F":  # the root: its columns use the pose after its motion
+            iq = joint.idx_q
+            p = p + R @ q[iq: iq + 3]
+            R = R @ quaternion_rotation(q[iq + 3: iq + 7])
+            columns[j] = (joint.idx_v, kind, R, p)
+            poses[j] = (R, p)
+            continue
+        assert axis is not None  # a 1-DoF joint has an axis
         world_axis = R @ ca.DM(axis)
         columns[j] = (joint.idx_v, kind, world_axis, p)
         if kind == "R":
@@ -131,7 +201,11 @@ def symbolic_frame_kinematics(model: pin.Model, frame_id: int) -> ca.Function:
     pose = ca.vertcat(ca.horzcat(R_f, p_f), ca.DM([[0, 0, 0, 1]]))
     J = ca.SX.zeros(6, model.nv)
     for idx_v, kind, axis, origin in columns.values():
-        if kind == "R":
+        if kind == "F":  # axis: the root's rotation R; linear [R, −[p_f − p]× R], angular [0, R]
+            J[:3, idx_v: idx_v + 3] = axis
+            J[:3, idx_v + 3: idx_v + 6] = -_skew(p_f - origin) @ axis
+            J[3:, idx_v + 3: idx_v + 6] = axis
+        elif kind == "R":
             J[:3, idx_v] = ca.cross(axis, p_f - origin)
             J[3:, idx_v] = axis
         else:

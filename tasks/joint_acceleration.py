@@ -83,11 +83,21 @@ _NUMPY = _Ops(np.maximum, np.minimum, np.where, np.sqrt, np.abs)
 _CASADI = _Ops(ca.fmax, ca.fmin, ca.if_else, ca.sqrt, ca.fabs)
 
 
+def _stopping_speed(ops: _Ops, gap, brake, lag):
+    """Largest speed ``u >= 0`` [unit/s] with ``lag · u + u² / (2 brake) <= gap``: a joint
+    that still moves at ``u`` for ``lag`` [s] and then brakes at ``brake`` (> 0) [unit/s²] stops
+    within ``gap`` [unit]. ``−brake · lag + sqrt(brake² lag² + 2 brake gap)``; where no
+    ``u >= 0`` fits (``gap < 0``) the formula's value, clipped at the square root's zero.
+    ``lag = 0`` is the continuous-time braking distance ``sqrt(2 brake gap)``; also used by
+    :mod:`wbc.tasks.acceleration_limit` (``lag = T``)."""
+    return -brake * lag + ops.sqrt(ops.fmax(brake * brake * lag * lag + 2 * brake * gap, 0))
+
+
 def _braking_bound(ops: _Ops, q, qd, q_max, brake, T):
     """Largest acceleration [unit/s²] whose next state can still stop below ``q_max`` when
     braking at ``brake`` (> 0) (the ``"viable"`` upper bound, see the module docstring)."""
     gap = q_max - q - qd * T / 2
-    u_star = -brake * T / 2 + ops.sqrt(ops.fmax(brake * brake * T * T / 4 + 2 * brake * gap, 0))
+    u_star = _stopping_speed(ops, gap, brake, T / 2)
     return ops.where(gap >= 0, (u_star - qd) / T, 2 * (q_max - q - qd * T) / (T * T))
 
 

@@ -29,7 +29,13 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from wbc.checks import check_frame, check_robot, checked_name, checked_number
+from wbc.checks import (
+    check_frame,
+    check_robot,
+    checked_name,
+    checked_number,
+    checked_weights,
+)
 from wbc.terms import Cost, Task
 
 from .frame import velocity_block
@@ -107,6 +113,11 @@ class RpyPoseTask(Task):
         gain: ``λ_p > 0`` [1/s] (Table I: 1.7).
         name: task name; the target is parameter ``"<name>.target"``, shape (6,):
             ``(x, y, z [m], roll, pitch, yaw [rad])`` in the world.
+        block: the joint-velocity block of the decision vector (``None``: all of it).
+        weight: ``w`` of the cost ``w/2 ||J_mm q̇ − λ_p ᵇT_w e_p||²`` (the paper's is 1): a
+            number, one per row (6, ``[m/s]`` rows then ``[rad/s]`` rows), or a CasADi SX
+            expression of the stack's parameters, set every tick (see
+            :func:`wbc.checks.checked_weights`).
 
     After :meth:`terms` (i.e. once added to a stack) the CasADi expressions ``error`` (``e_p``),
     ``jacobian`` (``J_mm``) and ``position_error_norm`` (``||e_pos||``) are attributes, for
@@ -114,7 +125,7 @@ class RpyPoseTask(Task):
     """
 
     def __init__(self, robot, frame: str = "ee", gain: float = 1.7, name: str | None = None,
-                 block: str | None = None) -> None:
+                 block: str | None = None, weight=1.0) -> None:
         what = f"RpyPoseTask {name!r}"
         check_robot(robot, f"robot of {what}")
         checked_name(frame, f"frame of {what}", optional=False)
@@ -123,6 +134,7 @@ class RpyPoseTask(Task):
         self.robot, self.frame = robot, frame
         self.name = checked_name(name, f"name of {what}")
         self.block = checked_name(block, f"block of {what}")
+        self.weight = checked_weights(weight, 6, f"weight of {what}")
         self.error = self.jacobian = self.position_error_norm = None
 
     def terms(self, stack):
@@ -136,4 +148,4 @@ class RpyPoseTask(Task):
         self.jacobian = rpy_jacobian(J, pose[:3, :3], q[2])
         self.position_error_norm = ca.norm_2(self.error[:3])
         command = self.gain * base_rotation_6(q[2], ca)(self.error)
-        return [Cost(self.jacobian @ qd, command, 1.0, self.name)]
+        return [Cost(self.jacobian @ qd, command, self.weight, self.name)]

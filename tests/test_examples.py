@@ -18,7 +18,9 @@ def example(name: str):
 
 def test_every_example_is_tested():
     tested = {"compose_and_swap_backends", "mobile_manipulator_reach",
-              "acceleration_joint_limits", "priorities_vs_weights", "time_your_stack"}
+              "acceleration_joint_limits", "priorities_vs_weights", "time_your_stack",
+              "humanoid_reach",  # humanoid_reach: tests/test_robots_roots.py
+              "collision_avoidance"}  # collision_avoidance: tests/test_collision.py
     assert {path.stem for path in EXAMPLES.glob("*.py")} == tested
 
 

@@ -1,6 +1,8 @@
-"""The robot protocol's conformance suite: every catalogue robot and the fixed-base Panda (with
-and without its prismatic fingers) against finite differences along ``integrate``, their own
-getters with and without ``out=``, their symbolic forms and their quantity registry."""
+"""The robot protocol's conformance suite: every catalogue robot, the fixed-base Panda (with
+and without its prismatic fingers) and two whole-robot URDFs of example-robot-data — Solo-12 on
+a free-flyer root and Tiago on its differential base (wheels recognised) — against finite
+differences along ``integrate``, their own getters with and without ``out=``, their symbolic
+forms and their quantity registry."""
 
 from __future__ import annotations
 
@@ -14,11 +16,12 @@ import wbc
 import wbc.robots
 from wbc.quantities import QuantityRegistry
 from wbc.robots import FixedBaseRobot, Robot, SymbolicRobot, load_panda
+from wbc.robots.resources import urdf_path
 from wbc.robots.views import column_major_view
 
 SEED = 20240917
 H = 1e-5  # central-difference step [s] along integrate
-ROBOTS = [*wbc.robots.names(), "panda", "panda_fingers"]
+ROBOTS = [*wbc.robots.names(), "panda", "panda_fingers", "solo12", "tiago_urdf"]
 REQUIRED_QUANTITIES = ("pose[ee]", "J[ee]", "Jdot_v[ee]", "J_base[ee]", "com", "J_com",
                        "manipulability[ee]", "manipulability_gradient[ee]")
 
@@ -28,6 +31,12 @@ def _load(name: str):
         return load_panda()
     if name == "panda_fingers":  # prismatic finger joints too
         return load_panda(fingers=True)
+    if name == "solo12":  # a quadruped on a free-flyer root
+        return wbc.robots.from_urdf(urdf_path("solo_description/robots/solo12.urdf"),
+                                    root="free_flyer", ee_frame="FL_FOOT")
+    if name == "tiago_urdf":  # the whole Tiago URDF, its two wheels the differential base's
+        return wbc.robots.from_urdf(urdf_path("tiago_description/robots/tiago_no_hand.urdf"),
+                                    root="differential", ee_frame="arm_tool_link")
     return wbc.robots.load(name)
 
 
@@ -40,11 +49,21 @@ def mobile(robot) -> bool:
     return getattr(robot, "base", None) is not None
 
 
+def floating(robot) -> bool:
+    return getattr(robot, "root", None) == "free_flyer"
+
+
+def unit_quaternion(rng: np.random.Generator) -> np.ndarray:
+    quaternion = rng.normal(size=4)
+    return quaternion / np.linalg.norm(quaternion)
+
+
 def states(robot, rng: np.random.Generator, count: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """Random ``(q, v)``: for mobile bases headings beyond ±π [rad] (1 to 4 whole turns) and
     base velocities up to 6 m/s and 5 rad/s (beyond the robots' limits: the kinematics do not
     care); joint rates up to 3 rad/s; the joints uniform within their position limits
-    (``[−π, π]`` where unbounded)."""
+    (``[−π, π]`` where unbounded); a free flyer anywhere in a 10 m box with any orientation,
+    its body twist up to 3 m/s and 3 rad/s."""
     lower = np.where(np.isfinite(robot.limits.q_lower), robot.limits.q_lower, -math.pi)
     upper = np.where(np.isfinite(robot.limits.q_upper), robot.limits.q_upper, math.pi)
     out = []
@@ -58,6 +77,9 @@ def states(robot, rng: np.random.Generator, count: int) -> list[tuple[np.ndarray
             nb = robot.nv_base
             v[: nb - 1] = rng.uniform(-6.0, 6.0, nb - 1)  # v_x (v_y) [m/s]
             v[nb - 1] = rng.uniform(-5.0, 5.0)  # ω [rad/s]
+        if floating(robot):
+            q[:3] = rng.uniform(-5.0, 5.0, 3)
+            q[3:7] = unit_quaternion(rng)
         out.append((q, v))
     if mobile(robot):
         assert any(abs(q[2]) > math.pi for q, _ in out)
@@ -73,7 +95,11 @@ def scaled_error(value: np.ndarray, reference: np.ndarray) -> float:
 
 def axes(robot, q: np.ndarray, frame: str, reference: str) -> np.ndarray:
     """Rotation (3 × 3) whose transpose takes world axes to the ``reference`` axes, derived from
-    the documented conventions: the base frame is ``Rz(θ)`` (the world for a fixed base)."""
+    the documented conventions: the base frame is ``Rz(θ)`` (the world for a fixed base, the
+    root body's rotation — its quaternion ``q[3:7]`` — for a free flyer)."""
+    if reference == "base" and floating(robot):
+        x, y, z, w = q[3:7]
+        return pin.Quaternion(w, x, y, z).toRotationMatrix()
     if reference == "world" or (reference == "base" and not mobile(robot)):
         return np.eye(3)
     if reference == "base":
@@ -90,7 +116,7 @@ def frames_to_check(robot) -> list[str]:
     model = robot.model
     middle = model.frames[robot.frame_id("ee")].parentJoint // 2 + 1
     body = next(f.name for f in model.frames if f.parentJoint == middle)
-    return ["ee", body, *(["base"] if mobile(robot) else [])]
+    return ["ee", body, *(["base"] if mobile(robot) or floating(robot) else [])]
 
 
 # ------------------------------------------------------------------------ protocol and sizes
@@ -127,6 +153,10 @@ def test_neutral_and_random_configurations_are_within_the_limits(robot):
     span = np.where(finite, robot.limits.q_upper - robot.limits.q_lower, 2.0 * math.pi)
     if mobile(robot):
         span[:2] = 4.0
+    if floating(robot):  # a box of ±2 m, unit quaternions
+        span[:3] = 4.0
+        span[3:7] = 1.0
+        np.testing.assert_allclose(np.linalg.norm(samples[:, 3:7], axis=1), 1.0, atol=1e-15)
     assert np.all(np.ptp(samples, axis=0) > 0.8 * span)
     assert np.all(np.abs(samples[:, ~finite]) <= math.pi)
 
@@ -140,7 +170,7 @@ def test_integrate_is_a_flow(robot):
         once = robot.integrate(q, v, 0.5)
         twice = robot.integrate(robot.integrate(q, v, 0.2), v, 0.3)
         np.testing.assert_allclose(twice, once, rtol=0, atol=1e-12)
-        nq_base, nv_base = (3, robot.nv_base) if mobile(robot) else (0, 0)
+        nq_base, nv_base = robot.nq_base, robot.nv_base
         np.testing.assert_allclose(once[nq_base:], q[nq_base:] + 0.5 * v[nv_base:], rtol=0,
                                    atol=1e-15)
 
@@ -387,7 +417,7 @@ class CentreOfMassTask(wbc.Task):
     """``J_com v = gain (target − com)`` plus a small step along the manipulability gradient
     of the arm joints: model quantities of every kind (symbolic forms and numeric only)."""
 
-    name = "com"
+    name = "com_task"  # not "com": a task may not shadow the model quantity
 
     def __init__(self, n_arm: int) -> None:
         self.n_arm = n_arm
@@ -396,8 +426,8 @@ class CentreOfMassTask(wbc.Task):
         v, n_arm = stack.variables["v"], self.n_arm
         com, J_com = stack.quantity("com", (3, 1)), stack.quantity("J_com", (3, v.shape[0]))
         gradient = stack.quantity("manipulability_gradient[ee]", (n_arm, 1))
-        target = stack.parameter("com.target", (3, 1))
-        return [wbc.Cost(J_com @ v - 0.5 * (target - com), name="com"),
+        target = stack.parameter("com_task.target", (3, 1))
+        return [wbc.Cost(J_com @ v - 0.5 * (target - com), name="com_task"),
                 wbc.Cost(v[v.shape[0] - n_arm:] - gradient, weight=1e-3, name="manipulability")]
 
 
@@ -418,8 +448,8 @@ def test_a_controller_plans_from_the_registry_numeric_and_compiled_alike(name):
     q = states(robot, np.random.default_rng(SEED + 12), 1)[0][0]
     target = robot.com(q)[:, None] + [[0.05], [-0.02], [0.03]]
     for _ in range(5):
-        v = numeric.step(q, **{"com.target": target})
+        v = numeric.step(q, **{"com_task.target": target})
         assert numeric.last_solution.ok
-        np.testing.assert_allclose(compiled.step(q, **{"com.target": target}), v, rtol=0,
+        np.testing.assert_allclose(compiled.step(q, **{"com_task.target": target}), v, rtol=0,
                                    atol=1e-9)
         q = robot.integrate(q, v, 0.01)

@@ -14,7 +14,7 @@ import wbc.robots as robots
 from wbc.errors import InvalidValueError, ShapeError
 from wbc.solvers import reference as ref
 from wbc.tasks.manipulability import (
-    ManipulabilityTask,
+    ManipulabilityAccelerationTask,
     arm_jacobian_derivatives,
     smallest_singular_value,
 )
@@ -86,9 +86,9 @@ def test_appendix_gradient_and_hessian_match_finite_differences(robot, derivativ
 
 
 def test_compiled_manipulability_acceleration_is_eq_13_of_the_appendix(robot, derivatives):
-    """ManipulabilityTask's q̈_sa (CasADi reverse + forward mode) equals eq. 13 evaluated with
-    the appendix's closed forms."""
-    task = ManipulabilityTask(robot, name="m")
+    """ManipulabilityAccelerationTask's q̈_sa (CasADi reverse + forward mode) equals eq. 13
+    evaluated with the appendix's closed forms."""
+    task = ManipulabilityAccelerationTask(robot, name="m")
     q_sym, v_sym = ca.SX.sym("q", 10), ca.SX.sym("v", 10)
     target = ca.Function("target", [q_sym, v_sym], [task.target(q_sym, v_sym, 5.0, 0.5)])
     for q, rng in _states(robot, 5, seed=1):
@@ -211,4 +211,4 @@ def test_bad_input_is_refused():
     with pytest.raises(InvalidValueError, match="dt"):
         ref.base_transition([0.1], [-1], [1], 0.0)
     with pytest.raises(InvalidValueError, match="gamma1"):
-        ManipulabilityTask(robots.load("mecanum_gen3"), gamma1=-1.0)
+        ManipulabilityAccelerationTask(robots.load("mecanum_gen3"), gamma1=-1.0)

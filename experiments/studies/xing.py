@@ -16,7 +16,8 @@ The QP (:func:`amp_stack`), over ``q̈`` (nv):
 * level 1: ``q̈_base = q̈_trans`` (eq. 15 sampled, :func:`~wbc.solvers.reference.base_transition`),
   weight ``1 − base_free`` where ``base_free = [σ_min(J_m) < σ_thr]`` is computed in the
   compiled function (:func:`wbc.tasks.manipulability.smallest_singular_value`);
-* level 2: :class:`~wbc.tasks.manipulability.ManipulabilityTask` (eq. 13) over all joints.
+* level 2: :class:`~wbc.tasks.manipulability.ManipulabilityAccelerationTask` (eq. 13) over
+  all joints.
 
 Where the paper's greedy loop enables the base as soon as the arm's SNS fails (and then
 distributes motion by a minimum-norm pseudo-inverse over all joints), the cascade first finds

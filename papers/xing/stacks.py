@@ -9,7 +9,8 @@ The QP (:func:`amp_stack`), over ``q̈`` (nv):
   :func:`~wbc.papers.xing.closed_form.base_transition`), weight ``1 − base_free`` where
   ``base_free = [σ_min(J_m) < σ_thr]`` is computed in the compiled function
   (:func:`wbc.tasks.manipulability.smallest_singular_value`);
-* level 2: :class:`~wbc.tasks.manipulability.ManipulabilityTask` (eq. 13) over all joints.
+* level 2: :class:`~wbc.tasks.manipulability.ManipulabilityAccelerationTask` (eq. 13) over
+  all joints.
 
 How it differs from the paper's greedy loop, and where the two agree: the study's docstring
 (:mod:`wbc.experiments.studies.xing`) and tests/test_xing_equivalence.py.
@@ -27,7 +28,11 @@ from wbc.errors import WbcError
 from wbc.quantities import QuantityRegistry
 from wbc.tasks import JointAccelerationLimit
 from wbc.tasks.frame import so3_log
-from wbc.tasks.manipulability import ManipulabilityTask, arm_jacobian, smallest_singular_value
+from wbc.tasks.manipulability import (
+    ManipulabilityAccelerationTask,
+    arm_jacobian,
+    smallest_singular_value,
+)
 from wbc.terms import Cost
 
 __all__ = ["DT", "POSE", "POSITION", "Setup", "add_amp_levels", "amp_controller", "amp_stack",
@@ -134,7 +139,7 @@ def amp_stack(robot, setup: Setup = POSITION) -> wbc.Stack:
     q_sym, J_m = arm_jacobian(robot)
     sigma = ca.substitute(smallest_singular_value(J_m), q_sym, q)
     base_free = ca.if_else(sigma < sigma_thr, 1.0, 0.0)
-    tertiary = ManipulabilityTask(robot, gamma1=setup.gamma1, gamma2=setup.gamma2,
+    tertiary = ManipulabilityAccelerationTask(robot, gamma1=setup.gamma1, gamma2=setup.gamma2,
                                   name="manipulability")
     n_base = base_slice(robot).stop
     return add_amp_levels(stack, J_r, drift_r, xdd, n_base,
