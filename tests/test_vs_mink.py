@@ -56,3 +56,31 @@ def test_vs_mink_without_mink_is_an_error_with_the_install_hint(tmp_path, monkey
     with pytest.raises(MissingDependencyError, match=r"pip install 'wbc\[mink\]'"):
         vs_mink.main(["--ticks", "5", "--out", str(tmp_path)])
     assert not (tmp_path / "vs_mink.json").exists()
+
+
+def test_the_ur5_loop_agrees_with_mink_while_both_limits_bind():
+    pytest.importorskip("mink")
+    from wbc.experiments.peers import scenarios
+
+    result = scenarios.ur5_loop("mink", ticks=scenarios.UR5_TICKS)
+    assert result["wbc_failures"] == 0
+    assert result["velocity_bound_ticks"] >= 50 and result["position_bound_ticks"] >= 30
+    # the same QP on quadprog; the largest differences (≤ 3e-7 rad/s, on the ticks where the
+    # hand arrives) are mink's own: pink's and wbc's commands agree to 1e-13 there (the
+    # module docstring of wbc.experiments.peers.scenarios)
+    assert result["command_diff_max"] <= 1e-6
+    assert result["command_diff_median"] <= 1e-10
+    assert result["ratio"] > 0
+
+
+def test_the_mink_report_holds_the_ur5_loop(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("mink")
+    from wbc.experiments.peers import scenarios
+
+    monkeypatch.setattr(scenarios, "UR5_TICKS", 20)
+    assert vs_mink.main(["--ticks", "20", "--backends", "quadprog", "--no-jit",
+                         "--out", str(tmp_path)]) == 0
+    report = json.loads((tmp_path / "vs_mink.json").read_text())
+    loop = report["scenarios"]["ur5_limits"]
+    assert {"wbc_median_s", "mink_median_s", "ratio", "command_diff_max"} <= set(loop)
+    assert "wbc / mink" in capsys.readouterr().out

@@ -233,12 +233,18 @@ def checked_integer(value, what: str, low: int | None = 0, high: int | None = MA
 
 
 def checked_weights(value, rows: int, what: str) -> float | np.ndarray | ca.SX:
-    """A cost weight over ``rows`` rows: a number ``>= 0``, ``(rows,)`` numbers ``>= 0``, or a
-    CasADi SX expression (``1 × 1`` or ``rows × 1``) of the stack's parameters, evaluated every
-    tick inside the compiled functions (a negative value there makes the level's QP fail with a
-    status, ``NUMERICAL``). Raises a :class:`~wbc.WbcError` naming ``what``."""
+    """A cost weight over ``rows`` rows: a number ``>= 0``, ``(rows,)`` numbers ``>= 0`` (a
+    CasADi ``DM`` is read as numbers), or a CasADi SX expression (``1 × 1``, ``rows × 1`` or
+    ``1 × rows``) of the stack's parameters — ``stack.parameter("w", 1)``, set every tick —
+    evaluated inside the compiled functions (a negative value there makes the level's QP fail
+    with a status, ``NUMERICAL``). That its symbols are the stack's parameters, not the decision
+    vector, is checked when the task is added (:meth:`wbc.Stack.add`). Raises a
+    :class:`~wbc.WbcError` naming ``what``."""
     if isinstance(value, ca.MX):
         raise InvalidValueError(f"{what}: MX expressions are not supported, build with ca.SX")
+    if isinstance(value, ca.DM):  # CasADi numbers: read as numbers (a column or a scalar)
+        value = np.asarray(value.full(), dtype=float)
+        value = value.reshape(()) if value.size == 1 else value.reshape(-1)
     if isinstance(value, ca.SX):
         sx = value.T if value.shape == (1, rows) else value
         if sx.shape not in ((1, 1), (rows, 1)):

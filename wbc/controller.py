@@ -72,6 +72,7 @@ import warnings
 from collections.abc import Callable
 from typing import NamedTuple
 
+import casadi as ca
 import numpy as np
 
 from .cbuild import compiler_available
@@ -80,6 +81,7 @@ from .checks import check_frame as check_frame  # re-exported: wbc.controller.ch
 from .errors import (
     InfeasibleError,
     InvalidValueError,
+    MissingLimitsWarning,
     NonFiniteError,
     ShapeError,
     UnknownNameError,
@@ -91,10 +93,13 @@ from .passes import compiled_kinematics, jit_compiled, why_not_fused
 from .qp import Status
 from .quantities import STATE_QUANTITIES, registry_of
 from .solution import Solution
-from .stack import Stack
+from .stack import Stack, _shadowing_message
+from .terms import VariableBounds, as_sx_column
 from .workspace import BackendSpec, Workspace
 
 FALLBACKS = ("hold", "last", "decelerate", "raise")
+MISSING_LIMITS = ("warn", "ignore", "raise")
+FINITE_LIMIT = 1e10  # a robot limit beyond this [rad, m, rad/s, m/s] is "no limit" (URDF fillers)
 # for the tick: module globals, looked up faster than attributes
 _clock, _ndarray, _FLOAT, _copyto = time.perf_counter, np.ndarray, np.dtype(float), np.copyto
 _SOLVED = Status.SOLVED
@@ -154,6 +159,12 @@ class Controller:
             ``True``: the same, but a stack that cannot be fused is a :class:`~wbc.WbcError`;
             ``False``: today's path. ``self.fused`` says which path is used and
             ``self.fused_reason`` why not.
+        missing_limits: what to do when the stack's hard constraints leave some of the robot's
+            finite position or velocity limits unbounded (:func:`missing_limits_message`; pink and
+            mink apply the model's limits by default, wbc only what the stack holds):
+            ``"warn"`` (default) — one :class:`~wbc.errors.MissingLimitsWarning` naming the
+            joints and how to bound them; ``"ignore"`` — the stack is limit-free on purpose;
+            ``"raise"`` — a :class:`~wbc.WbcError`.
         **options: backend options overriding the profile.
 
     Attributes:
@@ -181,9 +192,12 @@ class Controller:
     def __init__(self, robot, stack: Stack, backend: BackendSpec = "daqp",
                  profile: str = "default", dt: float = 0.01, fallback: str = "hold",
                  warm_start: bool = True, kinematics: str = "auto", jit: bool | str = "auto",
-                 fused: bool | str = "auto", **options) -> None:
+                 fused: bool | str = "auto", missing_limits: str = "warn", **options) -> None:
         if fallback not in FALLBACKS:
             raise WbcError(f"unknown fallback {fallback!r}; use one of {list(FALLBACKS)}")
+        if not isinstance(missing_limits, str) or missing_limits not in MISSING_LIMITS:
+            raise InvalidValueError(f"missing_limits must be one of {list(MISSING_LIMITS)}, "
+                                    f"got {missing_limits!r}")
         for name, value in (("jit", jit), ("fused", fused)):
             if value not in (True, False, "auto"):
                 raise WbcError(f"{name} must be True, False or 'auto', got {value!r}")
@@ -192,6 +206,13 @@ class Controller:
         self.fallback = fallback
         self.nq, self.nv = int(robot.nq), int(robot.nv)
         self.compiled = stack.compile()
+        _check_task_names(stack, robot)
+        if missing_limits != "ignore":
+            missing = missing_limits_message(robot, stack)
+            if missing is not None and missing_limits == "raise":
+                raise WbcError(f"wbc.Controller: {missing}")
+            if missing is not None:
+                warnings.warn(f"wbc.Controller: {missing}", MissingLimitsWarning, stacklevel=2)
         if kinematics not in ("auto", "compiled", "numeric"):
             raise WbcError(f"kinematics must be 'auto', 'compiled' or 'numeric', got "
                            f"{kinematics!r}")
@@ -317,6 +338,19 @@ class Controller:
             if name.endswith(".target"):
                 names.append(name[: -len(".target")])
         return sorted(names)
+
+    def last_qps(self) -> list[tuple]:
+        """The QPs of the last tick, to inspect or re-solve elsewhere: per QP of the cascade,
+        ``(label, (H, g, A, lA, uA, lb, ub), result)`` — the arrays in the form of
+        :mod:`wbc.qp` (``min ½x'Hx + g'x``, ``lA <= Ax <= uA``, ``lb <= x <= ub``) exactly as
+        the backend saw them (in a level that eliminates the levels above, the reduced QP in
+        null-space coordinates) and its :class:`~wbc.qp.QPResult` (``x``, status, multipliers
+        ``y``, ``z``, iterations). Levels the tick did not reach are absent. After a fused tick
+        (:mod:`wbc.fused`) the QPs the generated daqp solved are evaluated again (slower: for
+        diagnostics, not for the control loop). The arrays are live buffers the next tick
+        overwrites: copy what you keep. ``wbc bench --export DIR`` writes them as files
+        qpsolvers loads."""
+        return self.workspace.last_qps()
 
     @property
     def dt(self) -> float:
@@ -519,3 +553,138 @@ class Controller:
     def __repr__(self) -> str:
         return (f"Controller(robot={self.robot!r}, backend={self.workspace.backend_name!r}, "
                 f"dt={self.dt}, fallback={self.fallback!r})")
+
+
+# ---------------------------------------------------------------------- checks when built
+def _check_task_names(stack: Stack, robot) -> None:
+    """Refuse a task whose name is a parameter the controller fills from this robot (a plain
+    ``stack.parameter`` the robot's registry offers, e.g. ``"com"``): ``step(q, com=...)``
+    would name the quantity, not the task's target. :meth:`wbc.Stack.add` refuses the clashes
+    it can see (the state names, declared quantities); this one needs the robot."""
+    registry = registry_of(robot)
+    for name in stack.task_names:
+        parameter = stack.parameters.get(name)
+        if parameter is None or parameter.quantity:
+            continue
+        if name in registry:
+            raise WbcError(f"wbc.Controller: {_shadowing_message(name, name)}")
+
+
+def _finite(values) -> np.ndarray:
+    return np.abs(np.asarray(values, dtype=float).reshape(-1)) < FINITE_LIMIT
+
+
+def _arm_joints(robot, nq: int, nv: int) -> int | None:
+    """The number of trailing arm joints (whose ``q`` and ``v`` entries correspond one to one),
+    as :func:`wbc.tasks.posture.arm_size` decides without arguments; ``None`` if unknown."""
+    if getattr(robot, "n_arm", None) is not None:
+        return int(robot.n_arm)
+    if getattr(getattr(robot, "base", None), "nv", None) is not None:
+        return nv - int(robot.base.nv)
+    return nv if nq == nv else None
+
+
+def _bounded_coordinates(stack: Stack, start: int, nv: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(by_position, by_velocity)``: boolean masks over the ``nv`` joint coordinates
+    ``x[start:start + nv]`` — some hard :class:`~wbc.VariableBounds` of every level puts a side
+    on it that depends on ``"q"`` (a position limit: ``ConfigurationLimit``,
+    ``JointAccelerationLimit``), or one that does not depend on ``"q"`` or depends on ``"v"``
+    (a velocity limit: ``VelocityLimit``, numeric ``Bounds``, ``JointAccelerationLimit``).
+    A side is open where it evaluates to ±inf with the parameters' defaults (a side that
+    cannot be evaluated, e.g. of the state, counts as closed). One CasADi evaluation and one
+    dependency query for all the bounds (≈ 2 ms for a catalogue robot's stack)."""
+    lowers: list = []
+    uppers: list = []
+    columns: list = []
+    for entry in stack.constraints:
+        term = entry.term
+        if not isinstance(term, VariableBounds) or entry.levels is not None:
+            continue
+        block = stack.variables.slice(term.block)
+        size = block.stop - block.start
+        lowers.append(as_sx_column(term.lower, size, "bounds", allow_inf=True))
+        uppers.append(as_sx_column(term.upper, size, "bounds", allow_inf=True))
+        columns.extend(range(block.start - start, block.stop - start))
+    by_position, by_velocity = np.zeros(nv, bool), np.zeros(nv, bool)
+    if not columns:
+        return by_position, by_velocity
+    lower, upper = ca.vertcat(*lowers), ca.vertcat(*uppers)
+    params = list(stack.parameters.values())
+    symbols = ca.vertcat(*[ca.vec(p.symbol) for p in params]) if params else ca.SX(0, 1)
+    values = np.concatenate([
+        (p.default.reshape(-1, order="F") if p.default is not None else np.full(p.size, np.nan))
+        for p in params]) if params else np.zeros(0)
+    low, up = (np.asarray(v, dtype=float).reshape(-1) for v in
+               ca.Function("sides", [symbols], [lower, upper])(values))
+    closed = (low != -np.inf) | (up != np.inf)  # NaN (not evaluable) counts as closed
+
+    def depends(name: str) -> np.ndarray:
+        parameter = stack.parameters.get(name)
+        if parameter is None:
+            return np.zeros(len(columns), bool)
+        symbol = ca.vec(parameter.symbol)
+        return np.array(ca.which_depends(lower, symbol, 1, True), bool) | np.array(
+            ca.which_depends(upper, symbol, 1, True), bool)
+
+    uses_q, uses_v = depends("q"), depends("v")
+    for row, joint in enumerate(columns):
+        if closed[row] and 0 <= joint < nv:
+            by_position[joint] |= uses_q[row]
+            by_velocity[joint] |= uses_v[row] or not uses_q[row]
+    return by_position, by_velocity
+
+
+def missing_limits_message(robot, stack: Stack) -> str | None:
+    """What of the robot's finite limits no hard constraint of ``stack`` bounds, as a sentence
+    naming the joints and how to bound them — or ``None`` when every finite limit is bounded or
+    the question cannot be asked (a robot without ``limits``; a decision vector without a block
+    of the robot's ``nv`` joint coordinates, e.g. wheel torques).
+
+    The joint coordinates are the whole decision vector when it has ``nv`` entries, else its
+    one block of ``nv`` entries. Position limits count on the arm joints (the trailing
+    ``n_arm`` coordinates, as :class:`~wbc.tasks.ConfigurationLimit` bounds them); velocity
+    limits on every coordinate. Only constraints of every level count (``stack.constrain(task)``
+    without ``levels``)."""
+    limits = getattr(robot, "limits", None)
+    nq, nv = int(robot.nq), int(robot.nv)
+    if limits is None:
+        return None
+    variables = stack.variables
+    if variables.n == nv:
+        start = 0
+    else:
+        blocks = [name for name in variables.names if variables.size(name) == nv]
+        if len(blocks) != 1:
+            return None
+        start = variables.slice(blocks[0]).start
+    try:
+        q_finite = _finite(limits.q_lower) | _finite(limits.q_upper)
+        v_finite = _finite(limits.v_lower) | _finite(limits.v_upper)
+    except (AttributeError, TypeError, ValueError):
+        return None
+    arm = _arm_joints(robot, nq, nv)
+    position = np.zeros(nv, bool)
+    if arm is not None and q_finite.shape == (nq,) and 0 < arm <= min(nq, nv):
+        position[nv - arm:] = q_finite[nq - arm:]
+    velocity = v_finite if v_finite.shape == (nv,) else np.zeros(nv, bool)
+    by_position, by_velocity = _bounded_coordinates(stack, start, nv)
+    names = list(getattr(robot, "velocity_names", None) or [f"v[{i}]" for i in range(nv)])
+    if len(names) != nv:
+        names = [f"v[{i}]" for i in range(nv)]
+    parts, remedies = [], []
+    for label, need, have, remedy in (
+            ("position", position, by_position, "stack.constrain(ConfigurationLimit(robot))"),
+            ("velocity", velocity, by_velocity, "stack.constrain(VelocityLimit(robot))")):
+        missing = [names[i] for i in np.flatnonzero(need & ~have)]
+        if missing:
+            listed = ", ".join(missing[:6]) + (", ..." if len(missing) > 6 else "")
+            parts.append(f"the {label} limits of {len(missing)} coordinate"
+                         f"{'s' if len(missing) > 1 else ''} ({listed})")
+            remedies.append(remedy)
+    if not parts:
+        return None
+    return (f"no hard constraint of the stack bounds {' nor '.join(parts)}, which the robot "
+            "has: nothing keeps the commands within them (pink and mink apply the model's "
+            f"limits by default, wbc only what the stack holds). Add {' and '.join(remedies)} "
+            "(wbc.tasks) before building the controller, or pass "
+            "missing_limits='ignore' if the stack is limit-free on purpose")

@@ -59,3 +59,11 @@ class MissingDependencyError(WbcError, ImportError):
 class BackendError(WbcError, RuntimeError):
     """A QP backend's own library raised (a rejected option, a crash inside the solver); the
     message names the backend and keeps the library's words."""
+
+
+class MissingLimitsWarning(UserWarning):
+    """A :class:`~wbc.Controller` was built over a stack whose hard constraints leave some of
+    the robot's finite position or velocity limits unbounded: nothing keeps the commands within
+    them (pink and mink apply the model's limits by default; wbc applies what the stack says).
+    The message names the joints and how to bound them; ``Controller(...,
+    missing_limits="ignore")`` says the stack is limit-free on purpose."""

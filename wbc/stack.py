@@ -19,7 +19,8 @@ from .checks import (
     checked_number,
     checked_shape,
 )
-from .errors import InvalidValueError, ShapeError, WbcError
+from .errors import InvalidValueError, NonAffineError, ShapeError, WbcError
+from .quantities import STATE_QUANTITIES
 from .terms import Cost, Inequality, Task, Term, VariableBounds
 from .variables import Variables
 
@@ -193,6 +194,8 @@ class Stack:
         Returns:
             The CasADi symbol, of ``shape`` (``rows`` or ``(rows, cols)``).
         """
+        if name in self._names:  # a task "com" and the quantity "com": one keyword
+            raise WbcError(_shadowing_message(name, name))
         symbol = self.parameter(name, shape)
         self.parameters[name].quantity = True
         return symbol
@@ -204,21 +207,41 @@ class Stack:
         Equalities become costs, inequalities become soft (slack-minimising).
 
         Args:
+            weight: one number ``>= 0`` for the whole task (per-row weights are the task's own
+                ``weight=``), or a ``1 × 1`` CasADi SX expression of this stack's parameters
+                (``stack.parameter("w", 1)``), set every tick like any parameter. It
+                multiplies the task's own weight.
             scaling: make the level a task-scaling level: first maximise ``s ∈ [0, 1]`` such
                 that its costs hold exactly with their targets scaled by ``s`` (an LP), then
                 solve the level with ``s`` fixed (the QP form of SNS).
+
+        Refused, each with a :class:`~wbc.WbcError` naming the task, and leaving the stack as
+        it was: a name already in the stack; a name that is a model quantity's — ``"q"``,
+        ``"v"``, ``"dt"``, or one the stack declares (``"com"`` of a
+        :class:`~wbc.tasks.com.ComTask`): a reference keyword ``com=...`` could not tell the
+        task's target from the quantity (the :class:`~wbc.Controller` refuses the names of the
+        plain parameters its robot fills); a symbolic weight, here or the task's own, that
+        holds symbols other than this stack's parameters or depends on the decision vector.
         """
         what = f"stack.add({getattr(task, 'name', None)!r})"
         checked_integer(priority, f"priority of {what}", low=None)
+        if isinstance(weight, ca.DM) and weight.numel() == 1:  # CasADi's number: a number
+            weight = float(weight)
         if not isinstance(weight, ca.SX):
+            if isinstance(weight, (np.ndarray, list, tuple, ca.DM)):
+                array = as_float_array(weight.full() if isinstance(weight, ca.DM) else weight,
+                                       f"weight of {what}")
+                if array.size != 1:
+                    raise ShapeError(f"weight of {what} is one number for the whole task, got "
+                                     f"shape {array.shape}; give per-row weights to the task "
+                                     "(its weight=)")
+                weight = array.reshape(())
             weight = checked_number(weight, f"weight of {what}")
         elif weight.shape != (1, 1):  # per-row weights are the task's (e.g. LinearTask's)
             raise ShapeError(f"weight of {what}: a symbolic weight must be 1 x 1, got "
                              f"{weight.shape}; give per-row weights to the task")
         else:
-            check_symbols(weight, [self.variables.symbol,
-                                   *(p.symbol for p in self.parameters.values())],
-                          f"weight of {what}")
+            self._check_weight(weight, f"weight of {what}")
         if not isinstance(scaling, (bool, np.bool_)):
             raise InvalidValueError(f"scaling of {what} must be True or False, got {scaling!r}")
         entries = self._entries(task, weight)
@@ -355,14 +378,51 @@ class Stack:
             if not np.isfinite(weight) or weight < 0:
                 raise InvalidValueError(f"weight must be a finite number >= 0, got {weight!r}")
         name = task.name or f"{type(task).__name__.lower()}{len(self._names)}"
+        if not isinstance(name, str):
+            raise InvalidValueError(f"a task's name must be a str, got {name!r}")
         if name in self._names:
             raise WbcError(f"a task named {name!r} is already in the stack")
-        task.name = name  # unnamed tasks are named by the stack, so their parameters are too
-        terms = list(task.terms(self))
-        if not terms:
-            raise WbcError(f"task {name!r} produced no terms")
+        if name in STATE_QUANTITIES:
+            raise WbcError(_shadowing_message(name, name))
+        # a task the stack refuses leaves it as it was: the parameters its terms() declared
+        # are dropped again
+        before, x_above = dict(self.parameters), self._x_above
+        flags = {k: p.quantity for k, p in before.items()}
+        try:
+            task.name = name  # unnamed tasks are named by the stack, so their parameters too
+            terms = list(task.terms(self))
+            if not terms:
+                raise WbcError(f"task {name!r} produced no terms")
+            for term in terms:
+                if isinstance(term, Cost) and isinstance(term.weight, ca.SX):
+                    self._check_weight(term.weight, f"weight of task {name!r}")
+            quantities = [k for k, p in self.parameters.items() if p.quantity]
+            for quantity in quantities:  # "com" and the task's "com.target": one keyword
+                if name == quantity:
+                    raise WbcError(_shadowing_message(name, quantity))
+        except BaseException:
+            self.parameters, self._x_above = before, x_above
+            for key, flag in flags.items():
+                before[key].quantity = flag
+            raise
         self._names.add(name)
         return [Entry(t, name, weight) for t in terms]
+
+    def _check_weight(self, weight: ca.SX, what: str) -> None:
+        """A symbolic weight must be an expression of this stack's parameters (and of
+        :meth:`x_above`), never of the decision vector (the cost would not be quadratic)."""
+        if ca.depends_on(weight, self.variables.symbol):
+            raise NonAffineError(f"{what} depends on the decision vector; a weight is an "
+                                 "expression of the stack's parameters (stack.parameter(...))")
+        known = [p.symbol for p in self.parameters.values()]
+        if self._x_above is not None:
+            known.append(self._x_above)
+        check_symbols(weight, known, what)
+
+    @property
+    def task_names(self) -> list[str]:
+        """The names of the tasks and constraints added so far, sorted."""
+        return sorted(self._names)
 
     # ------------------------------------------------------------------ use
     @property
@@ -426,6 +486,14 @@ class Stack:
             ws.set(**values)
         return ws.solve()
 
+
+
+def _shadowing_message(task_name: str, quantity: str) -> str:
+    """The message of a task name that is also a model quantity's (see :meth:`Stack.add`)."""
+    return (f"task name {task_name!r} shadows the model quantity {quantity!r}: the controller "
+            f"fills {quantity!r} every tick, and a reference keyword {task_name}=... would "
+            f"name the quantity, not the task's target; name the task otherwise, e.g. "
+            f"{task_name + '_task'!r}")
 
 
 def _metric_and_pins(n: int, metric, mobility) -> tuple[np.ndarray, np.ndarray | None]:

@@ -50,11 +50,19 @@ message and exits 0. Writes ``vs_mink.json`` (per backend ``wbc_median_s``, ``mi
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
-
 import numpy as np
 
 from wbc.experiments.peers import vs_pink
+from wbc.experiments.peers.mujoco_models import (  # noqa: F401 (their home, re-exported)
+    HAND,
+    LOCKED_JOINTS,
+    joint_names,
+    mujoco_arm,
+    mujoco_panda,
+    panda_urdf_for_mujoco,
+    panda_urdf_without_meshes,
+    urdf_without_meshes,
+)
 from wbc.experiments.peers.vs_pink import (
     DAMPING,
     DT,
@@ -67,47 +75,8 @@ from wbc.experiments.peers.vs_pink import (
 )
 
 INSTALL_HINT = "pip install 'wbc[mink]'"
-HAND = "panda_hand"
-LOCKED_JOINTS = ("panda_finger_joint1", "panda_finger_joint2")
 MODEL_NOTE = ("example-robot-data panda.urdf loaded by MuJoCo: visual/collision elements "
               "removed, finger joints fixed (closed), fusestatic=false")
-
-
-def panda_urdf_without_meshes() -> ET.Element:
-    """The URDF of wbc's Panda without visual and collision elements (no meshes to find), the
-    fingers fixed: kinematics, joint ranges, velocity limits and inertias kept (also the
-    placo comparison's model, :mod:`wbc.experiments.peers.vs_placo`)."""
-    from wbc.robots.resources import urdf_path
-
-    root = ET.parse(urdf_path("panda_description/urdf/panda.urdf")).getroot()
-    for link in root.findall("link"):
-        for tag in ("visual", "collision"):
-            for element in link.findall(tag):
-                link.remove(element)
-    for joint in root.findall("joint"):
-        if joint.get("name") in LOCKED_JOINTS:  # locked at 0, as load_panda's reduced model
-            joint.set("type", "fixed")
-            for tag in ("limit", "axis", "mimic", "dynamics", "safety_controller"):
-                for element in joint.findall(tag):
-                    joint.remove(element)
-    return root
-
-
-def panda_urdf_for_mujoco() -> str:
-    """The URDF text of wbc's Panda, made loadable by MuJoCo without meshes (see the module
-    docstring): :func:`panda_urdf_without_meshes` and MuJoCo's compiler options."""
-    root = panda_urdf_without_meshes()
-    mujoco_block = ET.SubElement(root, "mujoco")
-    ET.SubElement(mujoco_block, "compiler", discardvisual="true", fusestatic="false",
-                  autolimits="true", angle="radian")
-    return ET.tostring(root, encoding="unicode")
-
-
-def mujoco_panda():
-    """The MuJoCo model of the Panda (7 hinge joints, ``panda_hand`` a body)."""
-    import mujoco
-
-    return mujoco.MjModel.from_xml_string(panda_urdf_for_mujoco())
 
 
 def model_discrepancy(robot, model=None, configurations: int = 20, seed: int = 0) -> dict:
@@ -142,11 +111,6 @@ def model_discrepancy(robot, model=None, configurations: int = 20, seed: int = 0
     worst["joint_range"] = float(max(np.abs(ranges[:, 0] - lower).max(),
                                      np.abs(ranges[:, 1] - upper).max()))
     return {**worst, "nq": (int(model.nq), int(robot.model.nq))}
-
-
-def joint_names(robot) -> list[str]:
-    """Pinocchio's joint names in velocity order (universe excluded; all joints 1-dof)."""
-    return [robot.model.names[i] for i in range(1, robot.model.njoints)]
 
 
 class MinkLoop:
@@ -200,6 +164,14 @@ class MinkLoop:
         import mink
 
         return mink.SE3.from_matrix(np.asarray(T, dtype=float))
+
+    @staticmethod
+    def scenarios(ticks: int) -> dict:
+        """The report's other loop (:mod:`wbc.experiments.peers.scenarios`): the UR5 with
+        both limits binding."""
+        from .scenarios import mink_scenarios
+
+        return mink_scenarios(ticks)
 
 
 def run_backend(backend: str, ticks: int, jit: bool = True) -> dict:

@@ -36,10 +36,18 @@ above 1e-6 on this ill-conditioned QP (Hessian eigenvalues from ≈1e-4, the pos
 (``wbc_error_vs_exact_max ≤ pink_error_vs_exact_max + COMMAND_TOL``). Pink's QP is written in
 ``Δq = v·dt``, so its solvers' absolute tolerances are amplified by ``1/dt`` in ``v``.
 
+More loops. After the backends, the rival's ``scenarios(ticks)`` (when it has one, and
+quadprog is installed on both sides) runs the loops of :mod:`wbc.experiments.peers.scenarios`:
+against pink the UR5 with its configuration and velocity limits binding and the mobile base
+with a relative-frame and a centre-of-mass task; against mink the UR5. Each records
+``wbc_median_s``, ``<rival>_median_s``, ``ratio`` (wbc / rival, both ticked at the same states,
+interleaved in this process) and ``command_diff_max``.
+
 Run: ``python -m wbc.experiments.peers.vs_pink --ticks 3000 --out results/vs_pink`` (or
 ``wbc pink``).
 Writes ``vs_pink.json`` (per backend ``wbc_median_s``, ``pink_median_s``, ``ratio``, p95s,
-agreement figures; the machine) and prints a markdown table.
+agreement figures; ``scenarios``: the loops above by name; the machine) and prints markdown
+tables.
 """
 
 from __future__ import annotations
@@ -182,6 +190,14 @@ class PinkLoop:
         import pinocchio as pin
 
         return pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+
+    @staticmethod
+    def scenarios(ticks: int) -> dict:
+        """The report's other loops (:mod:`wbc.experiments.peers.scenarios`): the UR5 with
+        both limits binding and the mobile base with a relative-frame and a CoM task."""
+        from .scenarios import pink_scenarios
+
+        return pink_scenarios(ticks)
 
 
 def _rotation_distance(Ra: np.ndarray, Rb: np.ndarray) -> float:
@@ -379,12 +395,22 @@ def main(argv: list[str] | None = None, rival: type[RivalLoop] | None = None) ->
         except Exception as err:  # one broken backend must not hide the others' results
             errors[backend] = f"{type(err).__name__}: {err}"
         report_progress(done, len(runs), backend)
+    scenarios = {}
+    run_scenarios = getattr(rival, "scenarios", None)
+    if run_scenarios is not None and "quadprog" in theirs:
+        from wbc.solvers import available_backends
+
+        if "quadprog" in available_backends():
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", qpsolvers.warnings.SparseConversionWarning)
+                scenarios = run_scenarios(args.ticks)
     machine = describe_machine()
     report = {"problem": {"robot": "panda (example-robot-data, fingers locked)", "dt": DT,
                           "frame_gain": FRAME_GAIN, "posture_gain": POSTURE_GAIN,
                           "posture_cost": POSTURE_COST, "limit_gain": LIMIT_GAIN,
                           "damping": DAMPING, "q0": Q0.tolist(), **rival.problem_notes()},
-              "backends": results, "skipped": skipped, "errors": errors, "machine": machine}
+              "backends": results, "skipped": skipped, "errors": errors,
+              "scenarios": scenarios, "machine": machine}
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / f"vs_{other}.json"
     path.write_text(json.dumps(report, indent=2))
@@ -393,6 +419,12 @@ def main(argv: list[str] | None = None, rival: type[RivalLoop] | None = None) ->
           f"commands within {COMMAND_TOL:g} rad/s at the same state — or, where they differ "
           f"more (iterative solvers), wbc's command at least as close to the exact QP answer "
           f"as {other}'s (the difference is {other}'s solver tolerance)")
+    if scenarios:
+        from .scenarios import markdown
+
+        print(f"\nmore loops (wbc.experiments.peers.scenarios; ratio = wbc tick / {other} "
+              "tick, both ticked at the same states, alternating which goes first):\n")
+        print(markdown(scenarios, other))
     print(f"\nmachine: {machine['cpu']}, {machine['cores']} cores, {machine['platform']}, "
           f"python {machine['python']}; jit={args.jit}; {args.ticks} ticks per backend")
     if skipped:

@@ -78,7 +78,7 @@ def initial_configuration(robot) -> np.ndarray:
     stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping=0.01,
                       mobility=np.r_[np.zeros(N_BASE), np.ones(robot.nv - N_BASE)])
     stack.add(RpyPoseTask(robot, "ee", 10.0, name="ee"))
-    controller = wbc.Controller(robot, stack, dt=0.01)
+    controller = wbc.Controller(robot, stack, dt=0.01, missing_limits="ignore")  # a plain IK
     q = np.concatenate([np.zeros(robot.nq - Q_DEX.size), Q_DEX])
     for _ in range(500):
         q = robot.integrate(q, controller.step(q, ee=INITIAL_POSE), 0.01)

@@ -58,8 +58,9 @@ class DecoupledController:
 
     def __init__(self, robot, field: VelocityField, backend: str = "daqp",
                  dt: float = DT, projector: str = "exact") -> None:
+        # the paper's eq. 22 holds no joint limits: reproduced as printed, on purpose
         self.arm = wbc.Controller(robot, arm_stack(robot, dt=dt, projector=projector),
-                                  backend=backend, dt=dt)
+                                  backend=backend, dt=dt, missing_limits="ignore")
         self.driver = FieldDriver(robot, field)
         self.nb = int(robot.nv_base)
         self.move_base = True
@@ -79,7 +80,8 @@ class WholeBodyController:
 
     def __init__(self, robot, field: VelocityField, backend: str = "daqp",
                  dt: float = DT) -> None:
-        self.qp = wbc.Controller(robot, whole_body_stack(robot, dt=dt), backend=backend, dt=dt)
+        self.qp = wbc.Controller(robot, whole_body_stack(robot, dt=dt), backend=backend, dt=dt,
+                                 missing_limits="ignore")  # no position limits, as eq. 22
         self.driver = FieldDriver(robot, field)
         self.last_solution: wbc.Solution | None = None
 

@@ -65,7 +65,9 @@ class SorourController:
             share_task(stack, sharing_factor(pose.position_error_norm, p["r_fm"], p["r_mm"]),
                        N_BASE, priority=0)
             stack.add(DexterousPosture(robot, Q_DEX, p["lambda_dex"], name="dex"), priority=1)
-        self.controller = wbc.Controller(robot, stack, backend=backend, dt=p["ts"])
+        # the paper's eqs. 7-13 hold no joint limits: reproduced as printed, on purpose
+        self.controller = wbc.Controller(robot, stack, backend=backend, dt=p["ts"],
+                                         missing_limits="ignore")
         self.steering = steering_controller(robot, backend)
         self.compensation = (ArmCompensation(robot.nv - N_BASE, backend=backend)
                              if variant == "compensated" else None)
