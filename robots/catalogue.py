@@ -221,6 +221,16 @@ def from_urdf(
         arm = arm_from_urdf(
             urdf, ee_frame, locked_joints=locked_joints, v_max=v_max, a_max=a_max, home=home
         )
+        from .whole_body import wheel_joints  # loaded when first needed
+
+        wheels = wheel_joints(arm.model)[0]
+        if wheels:  # a whole robot: its wheels would become arm joints the base never turns
+            raise InvalidValueError(
+                f"from_urdf: {os.fspath(urdf)!r} has wheel joints {wheels} on its root link: it "
+                f"describes a whole robot, not an arm; load it with root= (e.g. "
+                f"from_urdf(path, root={base if isinstance(base, str) else 'planar'!r}, "
+                f"ee_frame=...)) so the base's wheels replace them, or lock them "
+                f"(locked_joints=...)")
     robot = MobileManipulator(base_model, arm, mount, ee_frame=ee_frame, name=name)
     if not isinstance(urdf, Arm):
         robot.urdf_path = os.fspath(urdf)

@@ -273,6 +273,16 @@ def test_wheels_that_do_not_match_the_base_are_refused():
         wbc.robots.from_urdf(G1, root="differential")
 
 
+def test_a_whole_robot_given_as_an_arm_on_a_base_is_refused_naming_its_wheels():
+    # base= puts an arm on a base: the whole Tiago's wheels would become arm joints
+    with pytest.raises(wbc.InvalidValueError, match=r"wheel joints \['wheel_left_joint', "
+                                                    r"'wheel_right_joint'\].*root='differential'"):
+        wbc.robots.from_urdf(TIAGO, base="differential", ee_frame="arm_tool_link")
+    locked = wbc.robots.from_urdf(TIAGO, base="differential", ee_frame="arm_tool_link",
+                                  locked_joints=["wheel_left_joint", "wheel_right_joint"])
+    assert "wheel_left_joint" not in locked.joint_names
+
+
 def test_continuous_joints_are_accepted():
     """Tiago's wheels (URDF continuous joints) on a fixed root, a continuous double pendulum
     built in one step by FixedBaseRobot and by from_urdf: plain revolute joints, unbounded."""
