@@ -16,6 +16,9 @@ from wbc.checks import check_pose
 from wbc.robots import arms
 from wbc.tasks.manipulability import ManipulabilityAccelerationTask
 
+# stacks here leave the robot's limits out on purpose (they test other things)
+pytestmark = pytest.mark.filterwarnings("ignore::wbc.errors.MissingLimitsWarning")
+
 ROBOT = robots.load("omni4_arm6")
 UR5 = robots.urdf_path("ur_description/urdf/ur5_robot.urdf")
 E = wbc.errors

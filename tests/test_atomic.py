@@ -12,6 +12,9 @@ import wbc
 from wbc.robots.fixed_base import load_panda
 from wbc.tasks import Bounds, FrameTask, LinearConstraint, LinearTask
 
+# stacks here leave the robot's limits out on purpose (they test other things)
+pytestmark = pytest.mark.filterwarnings("ignore::wbc.errors.MissingLimitsWarning")
+
 N = 3
 GOOD = {"t.A": np.eye(N), "t.b": np.ones(N)}
 # (bad key and value, the error): one per kind of refusal

@@ -19,6 +19,9 @@ from wbc.tasks import (
     VelocityLimit,
 )
 
+# stacks here leave the robot's limits out on purpose (they test other things)
+pytestmark = pytest.mark.filterwarnings("ignore::wbc.errors.MissingLimitsWarning")
+
 DT = 0.01
 BACKEND = "daqp"
 Q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])

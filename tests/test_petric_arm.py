@@ -20,6 +20,9 @@ from wbc.solvers import available_backends
 from wbc.solvers.reference import nullspace_projector
 from wbc.tasks import LinearTask
 
+# stacks here leave the robot's limits out on purpose (they test other things)
+pytestmark = pytest.mark.filterwarnings("ignore::wbc.errors.MissingLimitsWarning")
+
 BACKENDS = available_backends()
 TOL = 1e-7
 

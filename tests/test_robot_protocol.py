@@ -19,6 +19,9 @@ from wbc.robots import FixedBaseRobot, Robot, SymbolicRobot, load_panda
 from wbc.robots.resources import urdf_path
 from wbc.robots.views import column_major_view
 
+# stacks here leave the robot's limits out on purpose (they test other things)
+pytestmark = pytest.mark.filterwarnings("ignore::wbc.errors.MissingLimitsWarning")
+
 SEED = 20240917
 H = 1e-5  # central-difference step [s] along integrate
 ROBOTS = [*wbc.robots.names(), "panda", "panda_fingers", "solo12", "tiago_urdf"]

@@ -12,6 +12,9 @@ import wbc.robots
 from wbc.sim import Simulation, actuation, position_error
 from wbc.tasks import FrameTask, PostureTask, VelocityLimit
 
+# stacks here leave the robot's limits out on purpose (they test other things)
+pytestmark = pytest.mark.filterwarnings("ignore::wbc.errors.MissingLimitsWarning")
+
 DT = 0.01
 
 

@@ -30,6 +30,9 @@ from wbc.solvers import available_backends
 from wbc.tasks import LinearTask, RpyPoseTask
 from wbc.tasks.rpy_pose import base_rotation_6, pose_error, rpy, rpy_jacobian
 
+# stacks here leave the robot's limits out on purpose (they test other things)
+pytestmark = pytest.mark.filterwarnings("ignore::wbc.errors.MissingLimitsWarning")
+
 BACKENDS = available_backends()
 TOL = 1e-7
 Q_DEX = np.array([math.pi / 2, math.pi / 2, math.pi / 2, -math.pi / 2, 0.0, 0.0, 0.0])
