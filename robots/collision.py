@@ -66,7 +66,6 @@ from __future__ import annotations
 import math
 import os
 import warnings
-import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from operator import attrgetter
@@ -213,9 +212,10 @@ def convex_hull(mesh: coal.BVHModelBase) -> coal.ConvexBase:
 
 
 # ------------------------------------------------------------------------------ the model
-# the collision selections of each registry: registry -> {key: (CollisionModel, k)}; a kind
-# registered again replaces the previous one, so one pair of kinds serves every model and task
-_SELECTIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+# the collision selections of a registry, {key: (CollisionModel, k)}, kept on the registry
+# itself (a module-level map would keep every robot alive: its values reference the robot); a
+# kind registered again replaces the previous one, so one pair of kinds serves every model
+_SELECTIONS = "_collision_selections"
 
 
 class CollisionModel:
@@ -479,7 +479,7 @@ class CollisionModel:
         key = checked_name(key, "key of a collision selection", optional=False)
         k = checked_integer(k, "max_pairs", low=1)
         registry = self.robot.quantities
-        selections = _SELECTIONS.setdefault(registry, {})
+        selections = vars(registry).setdefault(_SELECTIONS, {})
         selections[key] = (self, k)
         nv = int(self.robot.nv)
 
