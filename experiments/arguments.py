@@ -37,3 +37,22 @@ def constructible_backends(parser: argparse.ArgumentParser, text: str) -> list[s
         except BackendUnavailableError as err:
             parser.error(str(err))
     return backends
+
+
+def user_robots_and_stack(robot_files, stack_spec: str | None) -> tuple[list | None, object]:
+    """``--robot FILE.toml`` (repeatable) and ``--stack module:function`` of ``wbc fuzz`` and
+    ``wbc audit``: ``([(name, load), ...] or None, build or None)`` — ``load()`` a new
+    instance of the file's robot, ``build(robot)`` the user's stack, checked
+    (:mod:`wbc.experiments.benchmarks.user_inputs`). Each file is read once here, so a bad
+    one is a :class:`~wbc.WbcError` before the campaign starts."""
+    from wbc.experiments.benchmarks.user_inputs import load_robot_file, load_stack
+
+    robots = None
+    if robot_files:
+        robots = []
+        for path in robot_files:
+            robot = load_robot_file(path)
+            robots.append((getattr(robot, "name", None) or str(path),
+                           lambda path=path: load_robot_file(path)))
+    build = load_stack(stack_spec) if stack_spec else None
+    return robots, build

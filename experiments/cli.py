@@ -25,7 +25,8 @@ COMMANDS = {
     "demo": ("wbc.experiments.benchmarks.microbench",
              "one stack on every backend: agreement and timing"),
     "bench": ("wbc.experiments.benchmarks.solver_timing",
-              "solver-timing study over robots, stacks, backends"),
+              "solver-timing study: time, accuracy and settings per backend, on the "
+              "catalogue or your own robot (--robot FILE.toml) and stack (--stack mod:fn)"),
     "pink": ("wbc.experiments.peers.vs_pink", "head-to-head with pink on the Panda"),
     "mink": ("wbc.experiments.peers.vs_mink", "head-to-head with mink on the Panda"),
     "placo": ("wbc.experiments.peers.vs_placo", "head-to-head with placo (C++) on the Panda"),

@@ -13,10 +13,13 @@ from __future__ import annotations
 
 import ctypes
 import importlib
+import importlib.metadata
+import math
 import os
 import sys
 import tempfile
 import threading
+from time import perf_counter
 from types import ModuleType
 from typing import TextIO
 
@@ -31,6 +34,37 @@ from wbc.errors import (
     WbcError,
 )
 from wbc.qp import QPResult, Status
+
+#: the clock of :attr:`BackendBase.library_time` (the backends time their library calls with it)
+clock = perf_counter
+
+
+def package_version(package: str) -> str | None:
+    """The installed version of distribution ``package`` (``None``: not installed, or ``""``)."""
+    if not package:
+        return None
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def plain(value):
+    """``value`` with numpy scalars and arrays as Python numbers and lists, non-finite floats as
+    strings (``"inf"``, ``"-inf"``, ``"nan"``) and other objects as their ``str``: JSON-able."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else str(float(value))
+    return value if value is None or isinstance(value, str) else str(value)
 
 
 class ConsoleCapture:
@@ -240,12 +274,18 @@ class BackendBase:
     Attributes:
         console_lines: lines of console output this backend's solves printed (kept off the
             terminal) since it was made.
+        library_time: seconds spent inside the solver library's own calls (its setup, data
+            update and solve) since the last :meth:`setup` or :meth:`update` — the rest of a
+            backend's time is its adapter's (data layout, checks, multipliers). Each timed call
+            costs two clock reads (≈ 0.1 µs). Benchmarks read it (``wbc bench``).
         cascade_caveat: what was measured when this backend (with its profile) does not give
             the exact lexicographic answer on multi-level stacks, else ``None`` (set by
             :func:`wbc.solvers.make_backend` from ``CASCADE_CAVEATS``).
     """
 
     name: str = "base"
+    #: the distribution (pip name) of the solver library, whose version :meth:`settings` reports
+    package: str = ""
     cascade_caveat: str | None = None
     PROFILES: dict[str, dict] = {"default": {}, "tight": {}}  # an instance may have its own
     # n and m for the hooks: they run after setup(), which sets both, so never None there
@@ -258,14 +298,30 @@ class BackendBase:
         self.n: int | None = None
         self.m: int | None = None
         self.console_lines = 0
+        self.library_time = 0.0
         self._console: ConsoleCapture | None = None
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r}, profile={self.profile!r})"
 
+    def settings(self) -> dict:
+        """What this backend solves with, for reports (JSON-able): ``{"backend", "profile",
+        "package", "version", "options", "set_by_wbc"}`` — ``options`` are the resolved
+        settings: the library's defaults where the library exposes them, updated with the
+        profile's and the caller's (``set_by_wbc`` names those); infinities as ``"inf"``."""
+        return {"backend": self.name, "profile": self.profile, "package": self.package or None,
+                "version": package_version(self.package),
+                "options": plain({**self._library_defaults(), **self.options}),
+                "set_by_wbc": sorted(self.options)}
+
+    def _library_defaults(self) -> dict:
+        """The library's own default settings (overridden by backends that can read them)."""
+        return {}
+
     def setup(self, H, g, A, lA, uA, lb, ub) -> None:
         """Fix the structure (``n = H.shape[0]``, ``m = A.shape[0]``) and load the first data."""
         n, m = check_problem(H, g, A, lA, uA, lb, ub)
+        self.library_time = 0.0
         self.n, self.m = self._n, self._m = n, m
         self._shapes = ((n, n), (n,), (m, n), (m,), (m,), (n,), (n,))
         try:
@@ -285,6 +341,7 @@ class BackendBase:
                 f"QP backend {self.name!r} was set up for (H, g, A, lA, uA, lb, ub) shapes "
                 f"{self._shapes}; got {shapes}"
             )
+        self.library_time = 0.0
         try:  # free in CPython >= 3.11 when nothing is raised
             self._update(H, g, A, lA, uA, lb, ub)
         except WbcError:

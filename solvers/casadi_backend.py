@@ -59,6 +59,7 @@ from wbc.qp import QPResult, Status
 from .base import (
     BackendBase,
     ConsoleCapture,
+    clock,
     empty_failure,
     empty_sides,
     failure,
@@ -133,6 +134,7 @@ class CasadiConicBackend(BackendBase):
         self.plugin = plugin
         self.name = name or f"casadi:{plugin}"
         self.PROFILES = PLUGIN_PROFILES.get(plugin, {"default": {}, "tight": {}})
+        self.package = "casadi"  # the plugin (qpOASES, OSQP) ships inside CasADi
         super().__init__(profile, **options)
         self._casadi = import_solver("casadi", self.name)
         with silenced():
@@ -197,10 +199,13 @@ class CasadiConicBackend(BackendBase):
         if options is None:
             return False
         buffer, evaluate = self._bound(self._conic({**self.options, **options}))
+        t0 = clock()
         try:
             evaluate()
         except RuntimeError:
             return False
+        finally:
+            self.library_time += clock() - t0
         return True
 
     def _update(self, H, g, A, lA, uA, lb, ub) -> None:
@@ -251,6 +256,7 @@ class CasadiConicBackend(BackendBase):
         """Evaluate; a failure of a warm (hot-started) call is retried once from a fresh buffer,
         since the warm state itself may be what failed (qpOASES: "Failed to setup auxiliary QP
         for initialized homotopy" after a large change of the data)."""
+        t0 = clock()
         try:
             self._evaluate()
         except RuntimeError:
@@ -260,6 +266,7 @@ class CasadiConicBackend(BackendBase):
             self._evaluate()
         finally:
             self._fresh = False
+            self.library_time += clock() - t0
 
     def _restart(self) -> None:
         """Forget every earlier solve. A new buffer is not enough: qpOASES keeps its hot-start

@@ -25,7 +25,7 @@ import numpy as np
 
 from wbc.qp import QPResult, Status
 
-from .base import BackendBase, check_option_names, failure, import_solver
+from .base import BackendBase, check_option_names, clock, failure, import_solver
 from .forms import OneSidedRows, StackedConstraints, UpperTriangle
 
 _STATUS = {
@@ -43,6 +43,7 @@ class ClarabelBackend(BackendBase):
     docstring."""
 
     name = "clarabel"
+    package = "clarabel"
     PROFILES = {
         "default": {},
         # Tighter than 1e-10 fails (InsufficientProgress) on degenerate cascade levels whose
@@ -62,6 +63,12 @@ class ClarabelBackend(BackendBase):
         self._settings.presolve_enable = False  # in-place updates need it off
         for key, value in self.options.items():
             setattr(self._settings, key, value)
+
+    def _library_defaults(self) -> dict:
+        # the settings object it solves with (verbose and presolve set by the adapter)
+        settings = self._settings
+        return {k: getattr(settings, k) for k in dir(settings) if not k.startswith("_")
+                and isinstance(getattr(settings, k), (bool, int, float, str))}
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
         n, m = self._n, self._m
@@ -88,10 +95,12 @@ class ClarabelBackend(BackendBase):
         cones = [cone(size) for cone, size in ((clarabel.ZeroConeT, self._rows.n_eq),
                                                (clarabel.NonnegativeConeT, self._rows.n_ineq))
                  if size]
+        t0 = clock()
         self._solver = clarabel.DefaultSolver(
             self._triu.matrix(self._P), self._g, pattern.matrix(self._G),
             self._rows.rhs(stack.l, stack.u), cones, self._settings,
         )
+        self.library_time += clock() - t0
 
     def _gather_G(self) -> None:
         self._stack.gather(self._index, self._G)
@@ -104,11 +113,15 @@ class ClarabelBackend(BackendBase):
             self._build()
             return
         self._gather_G()
+        t0 = clock()
         self._solver.update(P=self._P, q=self._g, A=self._G, b=self._rows.rhs(stack.l, stack.u))
+        self.library_time += clock() - t0
 
     def _solve(self, warm_start) -> QPResult:
         n, m = self._n, self._m
+        t0 = clock()
         solution = self._solver.solve()
+        self.library_time += clock() - t0
         words = str(solution.status)
         status = _STATUS.get(words, Status.NUMERICAL)
         if status is not Status.SOLVED:

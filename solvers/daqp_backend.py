@@ -39,7 +39,7 @@ import numpy as np
 
 from wbc.qp import QPResult, Status
 
-from .base import BackendBase, check_option_names, failure, import_solver
+from .base import BackendBase, check_option_names, clock, failure, import_solver
 
 _EQUALITY = 5  # DAQP sense flags: ACTIVE (1) | IMMUTABLE (4)
 _EXIT = {
@@ -66,6 +66,7 @@ class DaqpBackend(BackendBase):
     """DAQP, kept alive between ticks. See the module docstring."""
 
     name = "daqp"
+    package = "daqp"
     PROFILES = {
         "default": {"eta_prox": 1e-10},
         "tight": {"primal_tol": 1e-10, "eta_prox": 1e-10},
@@ -75,6 +76,9 @@ class DaqpBackend(BackendBase):
         super().__init__(profile, **options)
         self._daqp = import_solver("daqp", self.name)
         check_option_names(self.name, self.options, self._daqp.Model().settings)
+
+    def _library_defaults(self) -> dict:
+        return dict(self._daqp.Model().settings)
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
         n, m = self._n, self._m
@@ -96,11 +100,13 @@ class DaqpBackend(BackendBase):
         self._A[...] = A
         self._data = (self._H, self._f, self._A)  # the loaded QP (for _solve_loosely)
         self._read_equalities()
+        t0 = clock()
         self._model = self._daqp.Model()
         self._model.settings = self.options  # kept by setup
         self._flag, _ = self._model.setup(
             self._H, self._f, self._A, self._upper, self._lower, self._sense
         )
+        self.library_time += clock() - t0
         if self._flag < 0:
             self._model = None
         self._cold = False
@@ -131,11 +137,13 @@ class DaqpBackend(BackendBase):
         # and A go in as they are; the references are kept for a retry (see _solve_loosely).
         self._data = (H, g, A)
         A = A if self._m else None
+        t0 = clock()
         if self._read_equalities() or self._cold:  # passing the flags resets the active set
             self._flag = self._model.update(H, g, A, self._upper, self._lower, self._sense)
             self._cold = False
         else:
             self._flag = self._model.update(H, g, A, self._upper, self._lower)
+        self.library_time += clock() - t0
 
     def _solve(self, warm_start) -> QPResult:
         n, m = self._n, self._m
@@ -143,7 +151,9 @@ class DaqpBackend(BackendBase):
             self._cold = True
             status, words = _exit(self._flag)
             return failure(n, m, status, f"daqp: setup/update failed: {words}")
+        t0 = clock()
         x, _, flag, info = self._model.solve()
+        self.library_time += clock() - t0
         note = ""
         if flag not in _SOLVED_FLAGS:
             self._cold = True
@@ -162,8 +172,11 @@ class DaqpBackend(BackendBase):
     def _solve_loosely(self) -> tuple | None:
         """DAQP's ``solve()`` outputs on the loaded QP with ``eta_prox`` at DAQP's default, on a
         model of its own (the regular one keeps its settings); ``None`` if its setup fails."""
+        t0 = clock()
         model = self._daqp.Model()
         model.settings = {**self.options, "eta_prox": LOOSE_ETA_PROX}
         H, g, A = self._data
         flag, _ = model.setup(H, g, A, self._upper, self._lower, self._sense)
-        return None if flag < 0 else model.solve()
+        answer = None if flag < 0 else model.solve()
+        self.library_time += clock() - t0
+        return answer

@@ -32,6 +32,7 @@ from wbc.qp import QPResult, Status
 from .base import (
     BackendBase,
     ConsoleCapture,
+    clock,
     empty_failure,
     empty_sides,
     failure,
@@ -52,6 +53,7 @@ class OsqpBackend(BackendBase):
     """OSQP, kept alive between ticks. See the module docstring."""
 
     name = "osqp"
+    package = "osqp"
     PROFILES = {
         "default": {"eps_abs": 1e-5, "eps_rel": 1e-5, "polishing": False, "max_iter": 4000},
         "tight": {"eps_abs": 1e-10, "eps_rel": 1e-10, "polishing": True, "max_iter": 200_000,
@@ -73,12 +75,14 @@ class OsqpBackend(BackendBase):
         self._pattern, self._index = self._stack.pattern(np.arange(m + n))
         self._A = np.empty(self._pattern.nnz)
         self._load(H, A, lA, uA, lb, ub)
+        t0 = clock()
         self._solver = self._osqp.OSQP()
         self._solver.setup(  # with empty sides (see _load) OSQP is set up on u = max(l, u)
             self._triu.matrix(self._P), g, self._pattern.matrix(self._A),
             self._stack.l, np.maximum(self._stack.l, self._stack.u), verbose=False,
             **self.options,
         )
+        self.library_time += clock() - t0
         self._status = {int(code): _STATUS.get(code.name, Status.NUMERICAL)
                         for code in self._osqp.SolverStatus}
 
@@ -94,15 +98,19 @@ class OsqpBackend(BackendBase):
     def _update(self, H, g, A, lA, uA, lb, ub) -> None:
         self._load(H, A, lA, uA, lb, ub)
         if not self._empty:
+            t0 = clock()
             self._solver.update(q=g, l=self._stack.l, u=self._stack.u, Px=self._P, Ax=self._A)
+            self.library_time += clock() - t0
 
     def _solve(self, warm_start) -> QPResult:
         n, m = self._n, self._m
         if self._empty:
             return empty_failure(self.name, n, m)
+        t0 = clock()
         if warm_start is not None:
             self._solver.warm_start(x=np.asarray(warm_start, dtype=float))
         result = self._solver.solve(raise_error=False)
+        self.library_time += clock() - t0
         info = result.info
         status = self._status.get(info.status_val, Status.NUMERICAL)
         if status is not Status.SOLVED:

@@ -31,7 +31,14 @@ import numpy as np
 from wbc.qp import QPResult, Status
 
 from . import proximal
-from .base import BackendBase, ConsoleCapture, failure, import_solver
+from .base import (
+    BackendBase,
+    ConsoleCapture,
+    clock,
+    failure,
+    import_solver,
+    package_version,
+)
 from .forms import OneSidedRows
 
 SOLVER_PROFILES: dict[str, dict[str, dict]] = {
@@ -56,6 +63,10 @@ SOLVER_PROFILES: dict[str, dict[str, dict]] = {
 """qpsolvers keyword settings per solver and profile."""
 
 NEEDS_POSITIVE_DEFINITE = frozenset({"quadprog"})
+#: the distribution of a qpsolvers solver, where it differs from the solver's name (for versions)
+SOLVER_PACKAGES = {"proxqp": "proxsuite", "piqp": "piqp", "highs": "highspy", "qpoases":
+                   "qpoases", "hpipm": "hpipm_python", "kvxopt": "kvxopt", "cvxopt": "cvxopt",
+                   "gurobi": "gurobipy", "mosek": "Mosek", "scs": "scs", "ecos": "ecos"}
 """Solvers that refuse singular Hessians: their ``proximal`` option defaults to ``True``."""
 
 
@@ -77,6 +88,7 @@ class QpsolversBackend(BackendBase):
         self.solver = solver
         self.name = f"qpsolvers:{solver}"
         self.PROFILES = SOLVER_PROFILES.get(solver, {"default": {}, "tight": {}})
+        self.package = "qpsolvers"
         super().__init__(profile, **options)
         self._qpsolvers = import_solver("qpsolvers", self.name)
         settings = dict(self.options)
@@ -84,6 +96,11 @@ class QpsolversBackend(BackendBase):
         self._proximal = proximal.ProximalPoint.from_options(settings) if use_proximal else None
         self._settings = {k: v for k, v in settings.items() if k not in proximal.OPTION_NAMES}
         self._console = ConsoleCapture()  # e.g. OSQP's "Polishing not needed ..."
+
+    def settings(self) -> dict:
+        """As :meth:`BackendBase.settings`, with the solver qpsolvers calls and its version."""
+        return {**super().settings(), "solver": self.solver,
+                "solver_version": package_version(SOLVER_PACKAGES.get(self.solver, self.solver))}
 
     def _setup(self, H, g, A, lA, uA, lb, ub) -> None:
         self._x = np.zeros(self._n)
@@ -109,9 +126,11 @@ class QpsolversBackend(BackendBase):
             problem = self._qpsolvers.Problem(H_, g_, **constraints)
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
+                t0 = clock()  # qpsolvers' conversions are inside: it is the library here
                 solution = self._qpsolvers.solve_problem(
                     problem, solver=self.solver, initvals=x0, **self._settings
                 )
+                self.library_time += clock() - t0
             if not solution.found or solution.x is None:
                 words = "; ".join(str(w.message) for w in caught) or "no solution found"
                 raise _NoSolution(words)

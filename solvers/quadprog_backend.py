@@ -72,7 +72,7 @@ import numpy as np
 from wbc.qp import QPResult, Status
 
 from . import proximal
-from .base import BackendBase, check_option_names, failure, import_solver
+from .base import BackendBase, check_option_names, clock, failure, import_solver
 from .forms import OneSidedRows, RowTable
 
 
@@ -243,6 +243,7 @@ class QuadprogBackend(BackendBase):
     """quadprog, with proximal iterations for singular Hessians. See the module docstring."""
 
     name = "quadprog"
+    package = "quadprog"
     PROFILES = {
         "default": {"feas_tol": 1e-10, "time_limit": 1.0, "prox_mu": 1e-3, "prox_tol": 1e-8,
                     "prox_max_iter": 100},
@@ -322,7 +323,11 @@ class QuadprogBackend(BackendBase):
         solve_qp, time_limit = self._quadprog.solve_qp, self._time_limit
 
         def solve(H, g):
-            x, _, _, iterations, lam, _ = _call(solve_qp, time_limit, H, -g, C, b, n_eq)
+            t0 = clock()  # (with a time limit, the worker's hand-off is inside)
+            try:
+                x, _, _, iterations, lam, _ = _call(solve_qp, time_limit, H, -g, C, b, n_eq)
+            finally:
+                self.library_time += clock() - t0
             if keep is not None:  # a dropped row is implied: multiplier 0
                 full = np.zeros(len(keep))
                 full[keep] = lam

@@ -45,17 +45,17 @@ def test_demo_writes_a_table_and_json(tmp_path, capsys):
 
 def test_bench_writes_json_markdown_and_plots(tmp_path, capsys):
     code = cli.main(["bench", "--robots", "mecanum_gen3", "--stacks", "one_level",
-                     "acceleration", "--backends", "proxqp", "daqp", "--ticks", "5",
-                     "--warmup", "2",
+                     "acceleration", "--scenarios", "circle", "--backends", "proxqp", "daqp",
+                     "--ticks", "5", "--warmup", "2",
                      "--scaling-ticks", "3", "--scaling-joints", "7", "--out", str(tmp_path)])
     assert code == 0
     progress = capsys.readouterr().err.splitlines()
-    assert progress == ["[########................] 1/3  mecanum_gen3 / one_level",
-                        "[################........] 2/3  mecanum_gen3 / acceleration",
+    assert progress == ["[########................] 1/3  mecanum_gen3 / one_level / circle",
+                        "[################........] 2/3  mecanum_gen3 / acceleration / circle",
                         "[########################] 3/3  scaling: 7-joint chain"]
     report = json.loads((tmp_path / "solver_timing.json").read_text())
     for kind in ("one_level", "acceleration"):
-        per_backend = report["results"]["mecanum_gen3"][kind]
+        per_backend = report["results"]["mecanum_gen3"][kind]["circle"]
         for result in per_backend.values():
             assert len(result["samples"]["tick"]) == 5
             assert result["success_rate"] == 1.0
@@ -65,7 +65,7 @@ def test_bench_writes_json_markdown_and_plots(tmp_path, capsys):
     assert report["scaling"]["proxqp"]["7"]["success_rate"] == 1.0
     assert report["scaling"]["daqp"]["7"]["dedicated"]["median"] > 0
     markdown = (tmp_path / "solver_timing.md").read_text()
-    assert "### mecanum_gen3 — one_level" in markdown and "| daqp alone |" in markdown
+    assert "### mecanum_gen3 — one_level — circle" in markdown and "| daqp alone |" in markdown
     for png in ("solver_timing.png", "scaling.png"):
         assert (tmp_path / png).read_bytes()[:4] == b"\x89PNG"
     assert "cpu" in report["machine"]

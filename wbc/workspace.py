@@ -359,6 +359,23 @@ class Workspace:
         ub), QPResult)`` — the exact arrays the backend saw (live buffers, copy to keep)."""
         return [(s.block.label, s.qp, s.result) for s in self._solved]
 
+    def last_library_times(self) -> list[float | None]:
+        """Per QP of :meth:`last_qps`, the seconds its backend spent inside the solver
+        library's own calls (setup or update, and solve) in the last tick — the backend's
+        ``library_time``; ``None`` for a backend that does not report it. The rest of the tick's
+        ``timings.solve`` is the adapters' and the cascade's. For benchmarks (``wbc bench``)."""
+        return [getattr(s.backend, "library_time", None) for s in self._solved]
+
+    def cold_start(self) -> None:
+        """Forget every backend's state: the next :meth:`solve` sets each QP's backend up
+        afresh (a new solver model: no active set, factorization or iterate kept, no warm start)
+        — a real cold start, the same for every backend, whose cost (the setup) the next
+        solve's time includes. For benchmarks (``wbc bench --cold``); a fused tick
+        (:mod:`wbc.fused`) always starts cold."""
+        for state in self._blocks:
+            state.ready = False
+            state.warm = None
+
     # ------------------------------------------------------------------ the tick
     def solve(self) -> Solution:
         """Solve the cascade for the current parameters. Never raises on a numerical failure:

@@ -5,7 +5,8 @@ The stack is what a whole-body velocity controller solves each tick: a 6-D task
 bounds that are active for part of the run. Parameters drift slowly from tick to tick, as in a
 closed loop, so warm starts matter. For every installed backend it reports
 
-* agreement with the reference (daqp, tight profile; exact on this QP) [max |Δx|],
+* agreement with the referee (quadprog, tight profile, no worker thread: exact; its status
+  checked every tick, see :mod:`wbc.experiments.benchmarks.accuracy`) [max |Δx|],
 * median / p95 of the assembly (compiled-function evaluation) and solve phases [µs],
 * the median of a cold, stateless ``qpsolvers.solve_qp`` call on the same QP, and the ratio of
   the persistent tick (assembly + solve) to it.
@@ -30,6 +31,7 @@ from typing import Any
 import numpy as np
 
 import wbc
+from wbc.errors import WbcError
 from wbc.experiments.arguments import installed_backends
 from wbc.experiments.machine import describe_machine
 from wbc.experiments.progress import report_progress
@@ -38,7 +40,7 @@ from wbc.solvers import available_backends
 from wbc.tasks import Bounds, LinearTask
 
 N_BASE, N_ARM, M_TASK = 3, 7, 6
-REFERENCE = ("daqp", "tight")  # active set: exact to ~1e-14 on this positive-definite QP
+REFERENCE = ("quadprog", "tight")  # the bench's referee (accuracy.REFEREE), no thread
 FUSED = "daqp (fused)"  # the row of the fused tick, wbc.fused (its "solve" is the whole call)
 
 
@@ -78,12 +80,15 @@ def run(ticks: int = 1000, warmup: int = 50, backends: list[str] | None = None,
     names = backends or available_backends()
     stack, values = pose_like_stack()
     seq = [tick_parameters(values, k) for k in range(warmup + ticks)]
-    reference = stack.workspace(*REFERENCE)
+    reference = stack.workspace(*REFERENCE, time_limit=None)
     ref_x = []
-    if reference is not None:
-        for params in seq[warmup:]:
-            reference.set(**params)
-            ref_x.append(reference.solve().x)
+    for params in seq[warmup:]:
+        reference.set(**params)
+        solution = reference.solve()
+        if not solution.ok:  # the referee's own status is checked: no silent wrong reference
+            raise WbcError(f"the referee {'/'.join(REFERENCE)} failed a tick: "
+                           f"{solution.message}")
+        ref_x.append(solution.x.copy())
     report: dict[str, Any] = {"machine": describe_machine(), "ticks": ticks, "jit": jit, "problem":
               f"{M_TASK}x{N_BASE + N_ARM} task + posture + damping + bounds", "backends": {}}
     runs = [(name, name) for name in names]

@@ -60,7 +60,7 @@ from wbc.tasks import (
     VelocityLimit,
 )
 
-from ..arguments import constructible_backends
+from ..arguments import constructible_backends, user_robots_and_stack
 
 DT = 0.01  # control period [s]
 TOL = 1e-9  # allowed excursion out of a limit (absolute)
@@ -158,23 +158,36 @@ def audit_run(robot, controller, level: str, q0, v0, target, ticks: int) -> dict
 
 
 def audit(runs: int, backends: list[str], levels: list[str], ticks: int = 30, seed: int = 0,
-          seconds: float | None = None) -> dict:
+          seconds: float | None = None, robots: list | None = None, build=None) -> dict:
     """About ``runs`` runs spread over robots × backends × levels; stops early after
-    ``seconds`` [s]. Returns the JSON-ready result."""
-    names = wbc.robots.names()
+    ``seconds`` [s]. ``robots``: ``(name, load)`` pairs (default: the catalogue); ``build``:
+    a stack of the user's (``build(robot) -> wbc.Stack``, see
+    :mod:`wbc.experiments.benchmarks.user_inputs`) audited instead of the built-in
+    controllers, at its own level (its command's kind), whatever ``levels`` says. Returns the
+    JSON-ready result."""
+    if robots is None:
+        robots = [(name, lambda name=name: wbc.robots.load(name)) for name in
+                  wbc.robots.names()]
+    if build is not None:
+        levels = [user_level(build, robots[0][1]())]
+    names = [name for name, _ in robots]
     per_cell = max(1, -(-runs // (len(names) * len(backends) * len(levels))))  # rounded up
     cells: dict[str, dict] = {}
     start = time.perf_counter()
     for level in levels:
         for backend in backends:
-            for r, name in enumerate(names):
-                robot = wbc.robots.load(name)
-                make = velocity_controller if level == "velocity" else acceleration_controller
-                controller = make(robot, backend)
+            for r, (name, load) in enumerate(robots):
+                robot = load()
+                if build is not None:
+                    controller = wbc.Controller(robot, build(robot), dt=DT, backend=backend)
+                elif level == "velocity":
+                    controller = velocity_controller(robot, backend)
+                else:
+                    controller = acceleration_controller(robot, backend)
                 label = f"{backend} (fused)" if getattr(controller, "fused", False) else backend
                 cell = dict.fromkeys(COUNTS, 0) | {"worst_q": -np.inf, "worst_v": -np.inf}
                 rng = np.random.default_rng([seed, LEVELS.index(level), r,
-                                             available_backends().index(backend)])
+                                             _backend_index(backend)])
                 for k in range(per_cell):
                     q0, v0 = random_start(rng, robot, level)
                     target = random_target(rng, robot, reachable=bool(k % 2 == 0))
@@ -187,8 +200,27 @@ def audit(runs: int, backends: list[str], levels: list[str], ticks: int = 30, se
                         break
                 cells[f"{level}/{label}/{name}"] = cell
     return summarise(cells, {"seed": seed, "ticks_per_run": ticks, "dt": DT, "tol": TOL,
-                             "backends": backends, "levels": levels,
+                             "backends": backends, "levels": levels, "robots": names,
+                             "stack": getattr(build, "spec", None),
                              "wall_s": round(time.perf_counter() - start, 1)})
+
+
+def user_level(build, robot) -> str:
+    """``"acceleration"`` when the user's stack commands accelerations (its first variable
+    block's name, see :func:`~wbc.experiments.benchmarks.user_inputs.is_acceleration`), else
+    ``"velocity"``."""
+    from wbc.experiments.benchmarks.user_inputs import is_acceleration
+
+    return "acceleration" if is_acceleration(build(robot)) else "velocity"
+
+
+def _backend_index(backend: str) -> int:
+    """A seed component per backend: its place among the available ones (a backend named
+    otherwise, e.g. ``qpsolvers:daqp``, after them, by its name's bytes)."""
+    available = available_backends()
+    if backend in available:
+        return available.index(backend)
+    return len(available) + sum(backend.encode())
 
 
 def summarise(cells: dict, parameters: dict) -> dict:
@@ -233,6 +265,12 @@ def main(argv=None) -> int:
     parser.add_argument("--seconds", type=float, default=None,
                         help="stop after this wall time [s]")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--robot", action="append", default=[], metavar="FILE.toml",
+                        help="audit a robot of your own (TOML description; repeatable) "
+                             "instead of the catalogue")
+    parser.add_argument("--stack", default=None, metavar="MODULE:FUNCTION",
+                        help="audit a stack of your own (function(robot) -> wbc.Stack with a "
+                             "frame task named 'ee') at its command's level")
     parser.add_argument("--out", type=Path, default=Path("results"))
     args = parser.parse_args(argv)
     if args.runs < 1 or args.ticks < 1:
@@ -244,7 +282,9 @@ def main(argv=None) -> int:
     for level in levels:
         if level not in LEVELS:
             parser.error(f"--levels: unknown level {level!r}; levels: {', '.join(LEVELS)}")
-    result = audit(args.runs, backends, levels, args.ticks, args.seed, args.seconds)
+    robots, build = user_robots_and_stack(args.robot, args.stack)
+    result = audit(args.runs, backends, levels, args.ticks, args.seed, args.seconds, robots,
+                   build)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "audit.json").write_text(json.dumps(result, indent=1))
     (args.out / "audit.md").write_text(markdown(result))

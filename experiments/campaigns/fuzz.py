@@ -50,6 +50,7 @@ import argparse
 import json
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import casadi as ca
@@ -71,9 +72,9 @@ from wbc.tasks import (
     PostureTask,
     VelocityLimit,
 )
-from wbc.tasks.manipulability import ManipulabilityTask
+from wbc.tasks.manipulability import ManipulabilityAccelerationTask
 
-from ..arguments import constructible_backends
+from ..arguments import constructible_backends, user_robots_and_stack
 
 HANG_S = 1.0  # a tick longer than this is a hang [s]
 CONSTRUCTOR_MIN = 40  # constructor calls per campaign at least (about one per constructor)
@@ -229,8 +230,12 @@ def stack_cases(backend: str, seed: int, structures: int, draws: int, fused: boo
 # robot family
 
 
-def robot_controller(robot, backend: str, dt: float = 0.01, fused: bool | str = "auto"):
-    """The velocity-level controller fuzzed on every robot (frame, posture, both limits)."""
+def robot_controller(robot, backend: str, dt: float = 0.01, fused: bool | str = "auto",
+                     build=None):
+    """The velocity-level controller fuzzed on every robot (frame, posture, both limits), or
+    the stack ``build(robot)`` of the user's (``--stack``)."""
+    if build is not None:
+        return wbc.Controller(robot, build(robot), dt=dt, backend=backend, fused=fused)
     stack = wbc.Stack(wbc.Variables(v=robot.nv), damping=1e-3)
     stack.add(FrameTask(robot, "ee", gain=0.5, name="ee"))
     stack.add(PostureTask(robot, gain=0.5, weight=1e-2, name="posture"))
@@ -271,12 +276,20 @@ def random_state(rng, robot, defect: str):
     return q, v, refs
 
 
-def robot_cases(backend: str, seed: int, ticks: int):
+def catalogue_robots() -> list[tuple[str, Callable]]:
+    """``(name, load)`` of every catalogue robot: the robot family's default."""
+    return [(name, lambda name=name: wbc.robots.load(name)) for name in wbc.robots.names()]
+
+
+def robot_cases(backend: str, seed: int, ticks: int, robots: list | None = None,
+                build=None):
     """Yield ``(case, class, defect, message)`` of the robot family on one backend (the
-    label is ``"daqp (fused)"`` when the controller takes the fused tick)."""
-    for r, name in enumerate(wbc.robots.names()):
-        robot = wbc.robots.load(name)
-        ctrl = robot_controller(robot, backend)
+    label is ``"daqp (fused)"`` when the controller takes the fused tick). ``robots``:
+    ``(name, load)`` pairs (default :func:`catalogue_robots`); ``build(robot) -> Stack``: the
+    user's stack instead of the default controller's."""
+    for r, (name, load) in enumerate(robots or catalogue_robots()):
+        robot = load()
+        ctrl = robot_controller(robot, backend, build=build)
         label = f"{backend} (fused)" if getattr(ctrl, "fused", False) else backend
         rng = np.random.default_rng([seed, 1000 + r])
         for k in range(ticks):
@@ -429,7 +442,7 @@ def constructor_specs() -> dict:
                                              hard=True), lambda rng: {
             "robot": robot, "dt": 0.01, "method": "viable", "name": "a", "joints": None,
             "block": None}),
-        "ManipulabilityTask": (_in_stack(ManipulabilityTask, velocities),
+        "ManipulabilityAccelerationTask": (_in_stack(ManipulabilityAccelerationTask, velocities),
                                lambda rng: {"robot": robot, "frame": "ee", "gamma1": 5.0,
                                             "gamma2": 0.5, "name": "m", "joints": None,
                                             "block": None}),
@@ -525,15 +538,18 @@ def classify_call(call, kwargs: dict) -> tuple[str, str | None, str]:
 # ---------------------------------------------------------------------------------------------
 
 
-def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | None = None):
+def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | None = None,
+             robots: list | None = None, build=None):
     """Run about ``cases`` cases: a twentieth of them (at least one per constructor)
     constructor calls, the rest spread over ``backends`` (a sixth of them robot ticks); stops
-    early after ``seconds`` [s]. Returns the JSON-ready result."""
+    early after ``seconds`` [s]. ``robots`` and ``build``: the robot family's robots and stack
+    (see :func:`robot_cases`). Returns the JSON-ready result."""
+    robots = robots or catalogue_robots()
     constructor_calls = max(CONSTRUCTOR_MIN, cases // 20)
     per_backend = -(-(cases - constructor_calls) // len(backends))  # rounded up
     per_backend = max(per_backend, 1)
-    robot_ticks = max(1, per_backend // 6 // len(wbc.robots.names()))
-    stack_ticks = per_backend - robot_ticks * len(wbc.robots.names())
+    robot_ticks = max(1, per_backend // 6 // len(robots))
+    stack_ticks = per_backend - robot_ticks * len(robots)
     draws = 2
     structures = max(1, -(-stack_ticks // (draws * TICKS)))
     outcomes: dict[str, dict[str, int]] = {}
@@ -544,7 +560,7 @@ def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | No
         if seconds is not None and time.perf_counter() - start > seconds:
             break
         families = [stack_cases(backend, seed, structures, draws),
-                    robot_cases(backend, seed, robot_ticks)]
+                    robot_cases(backend, seed, robot_ticks, robots, build)]
         if backend == "daqp":  # the fused cascade too (the robots' controllers take it anyway)
             families.append(stack_cases(backend, seed, structures, draws, fused=True))
         if i == 0:  # constructors do not depend on the backend: once
@@ -562,6 +578,8 @@ def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | No
     return {"cases": total, "families": families_count, "outcomes": outcomes,
             "defects": defects,
             "parameters": {"seed": seed, "backends": backends, "hang_s": HANG_S,
+                           "robots": [name for name, _ in robots],
+                           "stack": getattr(build, "spec", None),
                            "bound_tol": BOUND_TOL, "ticks_per_draw": TICKS,
                            "wall_s": round(time.perf_counter() - start, 1)}}
 
@@ -597,6 +615,12 @@ def main(argv=None) -> int:
     parser.add_argument("--seconds", type=float, default=None,
                         help="stop after this wall time [s]")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--robot", action="append", default=[], metavar="FILE.toml",
+                        help="the robot family on a robot of your own (TOML description; "
+                             "repeatable) instead of the catalogue")
+    parser.add_argument("--stack", default=None, metavar="MODULE:FUNCTION",
+                        help="the robot family's controller from a stack of your own: "
+                             "function(robot) -> wbc.Stack with a frame task named 'ee'")
     parser.add_argument("--out", type=Path, default=Path("results"))
     args = parser.parse_args(argv)
     if args.cases < 1:
@@ -604,7 +628,8 @@ def main(argv=None) -> int:
     if args.seconds is not None and not args.seconds > 0:
         parser.error("--seconds must be > 0")
     backends = constructible_backends(parser, args.backends)
-    result = campaign(args.cases, backends, args.seed, args.seconds)
+    robots, build = user_robots_and_stack(args.robot, args.stack)
+    result = campaign(args.cases, backends, args.seed, args.seconds, robots, build)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "fuzz.json").write_text(json.dumps(result, indent=1, default=_plain))
     (args.out / "fuzz.md").write_text(markdown(result))
