@@ -38,7 +38,7 @@ from wbc.checks import (
 from wbc.errors import InvalidValueError
 from wbc.terms import Cost, Task
 
-from .frame import velocity_block, weight_root
+from .frame import lm_damping_terms, velocity_block
 
 __all__ = ["AxisAlignTask", "unit_axis"]
 
@@ -53,15 +53,6 @@ def unit_axis(axis, what: str) -> np.ndarray:
     if norm < EPSILON:
         raise InvalidValueError(f"{what} must be a non-zero vector, got {axis}")
     return axis / norm
-
-
-def lm_terms(name: str, v, weight, gain: float, lm_damping: float, error) -> list[Cost]:
-    """Pink's/mink's Levenberg–Marquardt term ``μ/2 ‖v‖²``, ``μ = lm_damping · Σ w_i (gain
-    e_i)²`` (none when ``lm_damping = 0``)."""
-    if lm_damping <= 0:
-        return []
-    mu = lm_damping * gain ** 2 * ca.sumsqr(weight_root(weight) * error)
-    return [Cost(v, 0.0, mu, f"{name} (lm damping)")]
 
 
 class AxisAlignTask(Task):
@@ -117,7 +108,7 @@ class AxisAlignTask(Task):
         # reported residual: the error left after the tick, to first order [-]
         residual = e + dt * (J_e @ v)
         return [Cost(J_e @ v, -self.gain / dt * e, self.weight, self.name, residual),
-                *lm_terms(self.name, v, self.weight, self.gain, self.lm_damping, e)]
+                *lm_damping_terms(self.name, v, self.weight, self.gain, self.lm_damping, e)]
 
     def __repr__(self) -> str:
         return (f"{type(self).__name__}(frame={self.frame!r}, axis={self.axis.tolist()}, "

@@ -23,9 +23,9 @@ import numpy as np
 
 from wbc.checks import check_robot, checked_name, checked_number, checked_weights
 from wbc.errors import ShapeError
-from wbc.terms import Cost, Task
+from wbc.terms import Task
 
-from .frame import velocity_block, weight_root
+from .frame import tracking_terms, velocity_block
 
 
 class ComTask(Task):
@@ -78,12 +78,8 @@ class ComTask(Task):
         e = target - com
         self.error = e
         # reported residual: the error the command leaves, to first order [m]
-        residual = e - dt / self.gain * (J_com @ v) if self.gain > 0 else None
-        terms = [Cost(J_com @ v, self.gain / dt * e, self.weight, self.name, residual)]
-        if self.lm_damping > 0:
-            mu = self.lm_damping * ca.sumsqr(weight_root(self.weight) * self.gain * e)
-            terms.append(Cost(v, 0.0, mu, f"{self.name} (lm damping)"))
-        return terms
+        return tracking_terms(self.name, J_com @ v, e, v, dt, self.gain, self.weight,
+                              self.lm_damping)
 
     def __repr__(self) -> str:
         return f"ComTask(gain={self.gain}, weight={self.weight}, name={self.name!r})"

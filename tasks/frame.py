@@ -55,6 +55,27 @@ def weight_root(weight) -> ca.SX | ca.DM | float:
     return ca.DM(np.sqrt(weight)) if np.ndim(weight) else float(np.sqrt(weight))
 
 
+def lm_damping_terms(name: str, v: ca.SX, weight, gain, lm_damping: float,
+                     error) -> list[Cost]:
+    """Pink's (and mink's) Levenberg–Marquardt term ``μ/2 ||v||²`` with ``μ = lm_damping ·
+    Σ w_i (gain · e_i)²`` [same units as the task's cost] — none when ``lm_damping`` is 0."""
+    if lm_damping <= 0:
+        return []
+    mu = lm_damping * ca.sumsqr(weight_root(weight) * gain * error)
+    return [Cost(v, 0.0, mu, f"{name} (lm damping)")]
+
+
+def tracking_terms(name: str, rate: ca.SX, error: ca.SX, v: ca.SX, dt: ca.SX, gain: float,
+                   weight, lm_damping: float) -> list[Cost]:
+    """The velocity-level tracking cost ``1/2 Σ w_i (rate − gain · e / dt)_i²`` of an error
+    ``e`` whose rate the command makes ``rate = J_e v`` (``de/dt = −J_e v``), reporting as its
+    residual the error the command leaves, to first order (``e − dt/gain · J_e v``: 0 when the
+    row holds, ``e`` when nothing moves towards the target), plus :func:`lm_damping_terms`."""
+    residual = error - dt / gain * rate if gain > 0 else None
+    return [Cost(rate, gain / dt * error, weight, name, residual),
+            *lm_damping_terms(name, v, weight, gain, lm_damping, error)]
+
+
 def velocity_block(stack, block: str | None, nv: int, what: str) -> ca.SX:
     """The symbol of the joint velocities in the stack's decision vector (checked: ``nv``
     entries)."""
@@ -120,14 +141,9 @@ class FrameTask(Task):
         else:
             e, J_e = pose_error_world_jacobian(pose, target, J)
         self.error, self.jacobian = e, J_e
-        # reported residual: the error the command leaves, to first order, in m and rad
-        # (0 when the row holds; e itself when nothing moves towards the target)
-        residual = e - dt / self.gain * (J_e @ v) if self.gain > 0 else None
-        terms = [Cost(J_e @ v, self.gain / dt * e, self.weight, self.name, residual)]
-        if self.lm_damping > 0:
-            mu = self.lm_damping * ca.sumsqr(weight_root(self.weight) * self.gain * e)
-            terms.append(Cost(v, 0.0, mu, f"{self.name} (lm damping)"))
-        return terms
+        # the reported residual is the pose error the command leaves, in m and rad
+        return tracking_terms(self.name, J_e @ v, e, v, dt, self.gain, self.weight,
+                              self.lm_damping)
 
     def __repr__(self) -> str:
         return (f"FrameTask(frame={self.frame!r}, gain={self.gain}, weight={self.weight}, "

@@ -36,9 +36,9 @@ from wbc.checks import (
     checked_weights,
 )
 from wbc.errors import InvalidValueError, ShapeError, UnknownNameError
-from wbc.terms import Cost, Task
+from wbc.terms import Task
 
-from .frame import velocity_block, weight_root
+from .frame import tracking_terms, velocity_block
 from .posture import arm_size
 
 
@@ -111,12 +111,8 @@ class JointCouplingTask(Task):
         self.error = e
         expr = ca.DM(self.row_v).T @ v
         # reported residual, as FrameTask's: 0 when the row holds, e when nothing moves [rad]
-        residual = e - dt / self.gain * expr if self.gain > 0 else None
-        terms = [Cost(expr, self.gain / dt * e, self.weight, self.name, residual)]
-        if self.lm_damping > 0:
-            mu = self.lm_damping * ca.sumsqr(weight_root(self.weight) * self.gain * e)
-            terms.append(Cost(v, 0.0, mu, f"{self.name} (lm damping)"))
-        return terms
+        return tracking_terms(self.name, expr, e, v, dt, self.gain, self.weight,
+                              self.lm_damping)
 
     def __repr__(self) -> str:
         return (f"JointCouplingTask(joints={list(self.joints)}, ratios={self.ratios.tolist()}, "

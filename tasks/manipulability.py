@@ -43,7 +43,7 @@ from wbc.errors import WbcError
 from wbc.quantities import registry_of
 from wbc.terms import Cost, Task
 
-from .frame import velocity_block, weight_root
+from .frame import lm_damping_terms, velocity_block
 from .posture import arm_size
 
 __all__ = ["ManipulabilityAccelerationTask", "ManipulabilityTask", "arm_jacobian",
@@ -225,11 +225,9 @@ class ManipulabilityTask(Task):
                          ca.SX.zeros(self.n_arm))
         row = ca.vertcat(ca.SX.zeros(self.nv - self.n_arm), arm).T
         self.row = row
-        terms = [Cost(row @ v, rate, self.weight, self.name)]
-        if self.lm_damping > 0:
-            mu = self.lm_damping * ca.sumsqr(weight_root(self.weight) * rate * dt)
-            terms.append(Cost(v, 0.0, mu, f"{self.name} (lm damping)"))
-        return terms
+        # pink's damping of this task: its error is the rate asked per tick, rate · dt
+        return [Cost(row @ v, rate, self.weight, self.name),
+                *lm_damping_terms(self.name, v, self.weight, 1.0, self.lm_damping, rate * dt)]
 
     def __repr__(self) -> str:
         return (f"ManipulabilityTask(frame={self.frame!r}, rate={self.rate}, "

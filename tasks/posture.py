@@ -20,7 +20,6 @@ entries, as pink's); its base coordinates are ignored.
 
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 
 from wbc.checks import (
@@ -33,7 +32,7 @@ from wbc.checks import (
 from wbc.errors import ShapeError, WbcError
 from wbc.terms import Cost, Task
 
-from .frame import velocity_block, weight_root
+from .frame import lm_damping_terms, velocity_block
 
 
 def arm_size(robot, joints: int | None = None) -> int:
@@ -99,11 +98,8 @@ class PostureTask(Task):
         k = self.n_arm
         e = target[self.nq - k:] - q[self.nq - k:]
         self.error = e
-        terms = [Cost(v[self.nv - k:], self.gain / dt * e, self.weight, self.name)]
-        if self.lm_damping > 0:
-            mu = self.lm_damping * self.gain ** 2 * ca.sumsqr(weight_root(self.weight) * e)
-            terms.append(Cost(v, 0.0, mu, f"{self.name} (lm damping)"))
-        return terms
+        return [Cost(v[self.nv - k:], self.gain / dt * e, self.weight, self.name),
+                *lm_damping_terms(self.name, v, self.weight, self.gain, self.lm_damping, e)]
 
     def __repr__(self) -> str:
         return f"PostureTask(gain={self.gain}, weight={self.weight}, name={self.name!r})"

@@ -33,9 +33,9 @@ import casadi as ca
 from wbc.checks import check_frame, check_robot, checked_name, checked_number, checked_weights
 from wbc.errors import InvalidValueError
 from wbc.lie import pose_error_world_jacobian
-from wbc.terms import Cost, Task
+from wbc.terms import Task
 
-from .frame import velocity_block, weight_root
+from .frame import tracking_terms, velocity_block
 
 
 def relative_pose_and_jacobian(pose_f, pose_r, J_f, J_r) -> tuple[ca.SX, ca.SX]:
@@ -113,12 +113,8 @@ class RelativeFrameTask(Task):
         e, J_e = pose_error_world_jacobian(P, target, J_rel)
         self.error, self.jacobian = e, J_e
         # reported residual, as FrameTask's: the relative pose error the command leaves [m, rad]
-        residual = e - dt / self.gain * (J_e @ v) if self.gain > 0 else None
-        terms = [Cost(J_e @ v, self.gain / dt * e, self.weight, self.name, residual)]
-        if self.lm_damping > 0:
-            mu = self.lm_damping * ca.sumsqr(weight_root(self.weight) * self.gain * e)
-            terms.append(Cost(v, 0.0, mu, f"{self.name} (lm damping)"))
-        return terms
+        return tracking_terms(self.name, J_e @ v, e, v, dt, self.gain, self.weight,
+                              self.lm_damping)
 
     def __repr__(self) -> str:
         return (f"RelativeFrameTask(frame={self.frame!r}, root={self.root!r}, gain={self.gain}, "
