@@ -195,7 +195,7 @@ def from_urdf(
             raise InvalidValueError("from_urdf: root= needs a URDF path, got an Arm")
         if isinstance(root, str) and root in _BASES:
             root_model: str | PlanarBase = make_base(root)
-        elif isinstance(root, PlanarBase) or root in ROOTS:
+        elif isinstance(root, PlanarBase) or (isinstance(root, str) and root in ROOTS):
             root_model = root
         else:
             raise UnknownNameError(f"unknown root {root!r}; use one of "

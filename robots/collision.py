@@ -79,9 +79,11 @@ from wbc.checks import (
     as_float_array,
     check_finite,
     check_pose,
+    checked_flag,
     checked_integer,
     checked_name,
     checked_number,
+    checked_path,
 )
 from wbc.errors import InvalidValueError, ModelLoadError, ShapeError, UnknownNameError
 from wbc.quantities import QuantityRegistry
@@ -179,6 +181,13 @@ def _checked_sizes(value, count: int, what: str) -> tuple[float, ...]:
     return tuple(float(x) for x in array)
 
 
+def _checked_paths(value, what: str) -> list[str]:
+    """A list or tuple of folder paths (``str`` / ``os.PathLike``) as ``str`` s."""
+    if not isinstance(value, (list, tuple)):
+        raise InvalidValueError(f"{what} must be a list of folder paths, got {value!r}"[:160])
+    return [checked_path(entry, f"an entry of {what}", optional=False) for entry in value]
+
+
 def configure_requests(geometry_data: pin.GeometryData) -> None:
     """Set the distance requests of ``geometry_data`` as :class:`CollisionModel` uses them:
     GJK/EPA tolerances 1e-9, and *no* warm start from the previous call. pinocchio turns coal's
@@ -259,6 +268,14 @@ class CollisionModel:
         if not isinstance(getattr(robot, "quantities", None), QuantityRegistry):
             raise InvalidValueError(f"CollisionModel: robot {type(robot).__name__} has no "
                                     "quantity registry (robot.quantities)")
+        urdf = checked_path(urdf, "urdf of CollisionModel")
+        srdf = checked_path(srdf, "srdf of CollisionModel")
+        self_collision = checked_flag(self_collision, "self_collision of CollisionModel")
+        convex = checked_flag(convex, "convex of CollisionModel")
+        package_dirs = _checked_paths(package_dirs, "package_dirs of CollisionModel")
+        if isinstance(obstacles, (str, bytes)) or not isinstance(obstacles, Sequence):
+            raise InvalidValueError(f"obstacles of CollisionModel must be a list of "
+                                    f"wbc.robots.collision.Obstacle, got {obstacles!r}"[:160])
         self.robot = robot
         model: pin.Model = robot.model
         self.model = model

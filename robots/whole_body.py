@@ -50,7 +50,7 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
-from wbc.checks import as_float_array, check_finite, checked_name
+from wbc.checks import as_float_array, check_finite, checked_name, checked_vector
 from wbc.errors import InvalidValueError, ShapeError, UnknownNameError
 
 from .arms import _unambiguous_frames, _with_scalar_joints, arm_from_model, load_urdf_model
@@ -203,8 +203,7 @@ def _home(home, size: int) -> np.ndarray:
 def _joint_limit(value, default: np.ndarray, what: str) -> np.ndarray:
     if value is None:
         return default
-    array = np.broadcast_to(as_float_array(value, what), default.shape).astype(float)
-    check_finite(array, what, allow_inf=True)
+    array = checked_vector(value, default.size, what, allow_inf=True)
     if (array <= 0).any():
         raise InvalidValueError(f"{what} must be > 0, got {array}")
     return array

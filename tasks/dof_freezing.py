@@ -78,7 +78,7 @@ class DofFreezing(Task):
         if len(set(indices)) != len(indices):
             raise InvalidValueError(f"{what}: a coordinate is listed twice in {list(dofs)}")
         self.indices = tuple(sorted(indices))
-        if form not in FORMS:
+        if not isinstance(form, str) or form not in FORMS:  # `in` on an array is ambiguous
             raise InvalidValueError(f"form of {what} must be one of {list(FORMS)}, got "
                                     f"{form!r}")
         self.form = form

@@ -62,10 +62,12 @@ class Barrier(Task):
     block: str | None = None
 
     def _init_gains(self, gain, safe_displacement_gain, what: str, tile: int = 0) -> None:
-        if np.ndim(gain) == 0:
+        # numbers first: np.ndim of a ragged list or a str would raise numpy's own errors
+        array = as_float_array(gain, f"gain [1/s] of {what}")
+        if array.ndim == 0:
             gain = checked_number(gain, f"gain [1/s] of {what}", 0.0, strict=True)
-        elif tile and np.shape(gain) == (tile,) and self.rows == 2 * tile:
-            gain = np.tile(as_float_array(gain, f"gain [1/s] of {what}"), 2)  # as pink does
+        elif tile and array.shape == (tile,) and self.rows == 2 * tile:
+            gain = np.tile(array, 2)  # as pink does
         self.gain = checked_vector(gain, self.rows, f"gain [1/s] of {what}")
         if (self.gain <= 0).any():
             raise InvalidValueError(f"gain [1/s] of {what} must be > 0, got {self.gain}")

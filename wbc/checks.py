@@ -24,7 +24,8 @@ CasADi's or pinocchio's own exception, never at the first tick:
   stack's parameters (evaluated every tick);
 * :func:`checked_name`, :func:`checked_shape`, :func:`check_robot`, :func:`check_frame`,
   :func:`check_symbols` — names, parameter shapes, robots, a robot's frame names, the symbols of
-  an expression;
+  an expression; :func:`checked_flag` — a switch (``True`` / ``False``); :func:`checked_path`
+  — a file path (``str`` or ``os.PathLike``);
 * :func:`check_pose` — a homogeneous transform whose rotation is one (on the control tick:
   ≈ 0.7 µs on a 4 × 4, pure Python floats).
 """
@@ -33,6 +34,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 from typing import Literal, overload
 
 import casadi as ca
@@ -283,6 +285,32 @@ def checked_name(value, what: str, optional: bool = True) -> str | None:
     if not isinstance(value, str):
         raise InvalidValueError(f"{what} must be a str{' or None' if optional else ''}, got "
                                 f"{_kind(value)}")
+    return value
+
+
+def checked_flag(value, what: str) -> bool:
+    """A switch: ``True`` or ``False`` (numpy's ``bool_`` too) as a ``bool``; anything else —
+    ``0``, ``None``, an array — is an :class:`InvalidValueError` naming ``what``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidValueError(f"{what} must be True or False, got {_kind(value)}")
+    return bool(value)
+
+
+@overload
+def checked_path(value, what: str, optional: Literal[False]) -> str: ...
+@overload
+def checked_path(value, what: str, optional: bool = True) -> str | None: ...
+def checked_path(value, what: str, optional: bool = True) -> str | None:
+    """A file path: a ``str`` or an ``os.PathLike`` (``pathlib.Path``), returned as a ``str``
+    (``None`` if ``optional``); else :class:`InvalidValueError`. Whether the file exists is the
+    loader's to say (:class:`~wbc.ModelLoadError`)."""
+    if value is None and optional:
+        return None
+    if isinstance(value, os.PathLike):
+        value = os.fspath(value)
+    if not isinstance(value, str):
+        raise InvalidValueError(f"{what} must be a file path (str or pathlib.Path)"
+                                f"{' or None' if optional else ''}, got {_kind(value)}")
     return value
 
 

@@ -11,7 +11,7 @@ and it is a **defect** when it raises anything else, returns NaN / inf in ``x`` 
 leaves a hard variable bound by more than ``1e-9 · max(1, |bound|)`` on success, or takes more
 than 1 s (a hang).
 
-Case families (drawn in proportion, all seeded from ``--seed``):
+Case families (drawn in proportion, all seeded from ``--seed``; ``--families`` picks some):
 
 * ``stack``: random stacks of 1–4 priority levels over 1–12 variables (one or two blocks),
   built once per *structure* and then updated tick after tick through the workspace. Tasks
@@ -28,9 +28,13 @@ Case families (drawn in proportion, all seeded from ``--seed``):
   reference names, non-orthonormal target rotations, unreachable targets, NaN targets.
 * ``constructors``: one call of a public constructor or stack method (``wbc.Variables``,
   ``Stack.parameter`` / ``add`` / ``constrain`` / ``set_mobility``, every task of
-  ``wbc.tasks`` — built, put in a fitting stack and compiled —, the robots' loaders
-  ``load`` / ``make_base`` / ``from_urdf`` / ``arm_from_urdf`` / ``arm_from_model``, and a
-  controller's ``set_references``) with valid arguments and then one or two of them replaced by
+  ``wbc.tasks`` — built, put in a fitting stack and compiled (a hard one beside a cost) —, the
+  robots' loaders ``load`` / ``make_base`` / ``from_urdf`` (an arm on a base, and a whole-robot
+  URDF on each kind of root: ``"free_flyer"``, ``"planar"``, ``"fixed"``, a base) /
+  ``arm_from_urdf`` / ``arm_from_model``, the collision geometry (``CollisionModel``,
+  ``Obstacle.box`` / ``sphere`` / ``capsule``), and a controller's ``set_references``; the
+  cases are :func:`constructor_specs`, each valid as given — tested, as is that every task of
+  ``wbc.tasks`` has one) with valid arguments and then one or two of them replaced by
   a bad value: NaN, ±inf, a wrong shape, an empty array, a ``str``, ``None``, a ``dict``, a
   complex number, a negative number, a ``bool``, a CasADi symbol, a ragged list, an ``int``
   beyond float's range, zero. Rule: a call that returns is a ``"success"`` (some of these values
@@ -77,7 +81,8 @@ from wbc.tasks.manipulability import ManipulabilityAccelerationTask
 from ..arguments import constructible_backends, user_robots_and_stack
 
 HANG_S = 1.0  # a tick longer than this is a hang [s]
-CONSTRUCTOR_MIN = 40  # constructor calls per campaign at least (about one per constructor)
+CONSTRUCTOR_MIN = 64  # constructor calls per campaign at least (one per constructor, 57)
+FAMILIES = ("stack", "robot", "constructors")  # the case families (module docstring)
 BOUND_TOL = 1e-9  # allowed excursion out of a hard variable bound, relative to max(1, |b|)
 TICKS = 8  # ticks per structure and draw of a stack case family (each tick is a case)
 DEFECTS = ("none", "none", "nan", "inf", "shape", "crossed", "unknown", "zero_weight", "huge")
@@ -354,13 +359,22 @@ def bad_value(rng: np.random.Generator, good, kind: str):
 
 def _in_stack(build, variables, hard: bool = False):
     """A call that builds a task, adds (or constrains) it in a stack over ``variables`` and
-    compiles the stack."""
+    compiles the stack (a hard one beside a cost over every variable: a stack without a task
+    is refused before the constraint's terms are built)."""
     def call(**kwargs):
         stack = wbc.Stack(variables(), damping=1e-3)
         task = build(**kwargs)
+        if hard:
+            _add_rest(stack)
         (stack.constrain if hard else stack.add)(task)
         stack.compile()
     return call
+
+
+def _add_rest(stack) -> None:
+    """A zero-target cost over the whole decision vector, so that ``stack`` compiles."""
+    n = stack.variables.n
+    stack.add(LinearTask(np.eye(n), np.zeros(n), name="rest"))
 
 
 def constructor_specs() -> dict:
@@ -371,6 +385,17 @@ def constructor_specs() -> dict:
     ur5_model = arms.load_urdf_model(str(ur5))
     ctrl = robot_controller(robot, "daqp", fused=False)
     target = robot.frame_pose(robot.neutral(), "ee").copy()
+    # whole-robot URDFs for from_urdf(root=...): the 2-joint pendulum (the cheapest to load)
+    # on the roots without wheels, the whole Tiago (two drive wheels) on the differential base
+    pendulum = wbc.robots.urdf_path("double_pendulum_description/urdf/double_pendulum_simple.urdf")
+    tiago = wbc.robots.urdf_path("tiago_description/robots/tiago_no_hand.urdf")
+    # collision avoidance on the Panda against one sphere: no self pairs keeps it cheap
+    panda = wbc.robots.load_panda()
+    panda_srdf = wbc.robots.urdf_path("panda_description/srdf/panda.srdf")
+    ball = wbc.robots.Obstacle.sphere("ball", 0.1, position=[0.5, 0.0, 0.5])
+    collisions = wbc.robots.CollisionModel(panda, obstacles=[ball], self_collision=False)
+    box_pose = np.eye(4)
+    box_pose[:3, 3] = [0.55, 0.0, 0.5]
 
     def on(n_x=n):
         return lambda: wbc.Variables(x=n_x)
@@ -378,9 +403,23 @@ def constructor_specs() -> dict:
     def velocities():
         return wbc.Variables(v=nv)
 
+    def panda_velocities():
+        return wbc.Variables(v=panda.nv)
+
+    def safe_displacement(**kwargs):
+        stack = wbc.Stack(velocities(), damping=1e-3)
+        stack.add(tasks.SafeDisplacement(**kwargs))
+        stack.compile()
+
+    def robot_weights(rng):
+        return {"robot": robot, "weight": rng.uniform(0.0, 1.0, nv), "name": "w",
+                "block": None}
+
     def stack_method(method):
         def call(**kwargs):
             stack = wbc.Stack(3)
+            if method == "constrain":
+                _add_rest(stack)
             getattr(stack, method)(**kwargs)
             if method in ("add", "constrain"):
                 stack.compile()
@@ -432,15 +471,15 @@ def constructor_specs() -> dict:
             "robot": robot, "gain": 0.5, "weight": 1.0, "lm_damping": 0.0, "name": "posture",
             "joints": None, "block": None}),
         "ConfigurationLimit": (_in_stack(tasks.ConfigurationLimit, velocities, hard=True),
-                               lambda rng: {"robot": robot, "gain": 0.5, "name": "q",
+                               lambda rng: {"robot": robot, "gain": 0.5, "name": "q_limits",
                                             "joints": None, "block": None}),
         "VelocityLimit": (_in_stack(tasks.VelocityLimit, velocities, hard=True), lambda rng: {
-            "robot": robot, "scale": 1.0, "name": "v", "block": None}),
+            "robot": robot, "scale": 1.0, "name": "v_limits", "block": None}),
         "RpyPoseTask": (_in_stack(tasks.RpyPoseTask, velocities), lambda rng: {
             "robot": robot, "frame": "ee", "gain": 1.7, "name": "rpy", "block": None}),
         "JointAccelerationLimit": (_in_stack(tasks.JointAccelerationLimit, velocities,
                                              hard=True), lambda rng: {
-            "robot": robot, "dt": 0.01, "method": "viable", "name": "a", "joints": None,
+            "robot": robot, "dt": 0.01, "method": "viable", "name": "qdd_limits", "joints": None,
             "block": None}),
         "ManipulabilityAccelerationTask": (_in_stack(ManipulabilityAccelerationTask, velocities),
                                lambda rng: {"robot": robot, "frame": "ee", "gamma1": 5.0,
@@ -478,12 +517,90 @@ def constructor_specs() -> dict:
         "share_task": (share, lambda rng: {"psi": 0.5, "n_base": 3, "priority": 0}),
         "ArmCompensation": (tasks.ArmCompensation, lambda rng: {
             "n_arm": 3, "rows": 6, "backend": "daqp", "profile": "default"}),
+        "ComTask": (_in_stack(tasks.ComTask, velocities), lambda rng: {
+            "robot": robot, "gain": 0.5, "weight": np.ones(3), "lm_damping": 0.0,
+            "name": "centre", "block": None}),
+        "RelativeFrameTask": (_in_stack(tasks.RelativeFrameTask, velocities), lambda rng: {
+            "robot": robot, "frame": "ee", "root": "base_link", "gain": 0.5,
+            "weight": np.ones(6), "lm_damping": 0.0, "name": "relative", "block": None}),
+        "DampingTask": (_in_stack(tasks.DampingTask, velocities), robot_weights),
+        "JointVelocityTask": (_in_stack(tasks.JointVelocityTask, velocities), robot_weights),
+        "LowAccelerationTask": (_in_stack(tasks.LowAccelerationTask, velocities),
+                                robot_weights),
+        "JointCouplingTask": (_in_stack(tasks.JointCouplingTask, velocities), lambda rng: {
+            "robot": robot, "joints": ["shoulder_lift_joint", "elbow_joint"],
+            "ratios": [1.0, -0.5], "gain": 0.5, "weight": 1.0, "lm_damping": 0.0,
+            "name": "coupling", "block": None}),
+        "DofFreezing": (_in_stack(tasks.DofFreezing, velocities, hard=True), lambda rng: {
+            "robot": robot, "dofs": ["vx", 4], "form": str(rng.choice(["bounds", "equality"])),
+            "name": "frozen", "block": None}),
+        "KineticEnergyRegularizationTask": (_in_stack(tasks.KineticEnergyRegularizationTask,
+                                                      velocities), lambda rng: {
+            "robot": robot, "weight": 1e-3, "name": "energy", "block": None}),
+        "AccelerationLimit": (_in_stack(tasks.AccelerationLimit, velocities, hard=True),
+                              lambda rng: {"robot": robot, "a_max": np.full(nv, 5.0),
+                                           "method": "viable", "name": "a_limits",
+                                           "joints": None, "block": None}),
+        "PositionBarrier": (_in_stack(tasks.PositionBarrier, velocities, hard=True),
+                            lambda rng: {"robot": robot, "frame": "ee",
+                                         "p_min": [-2.0, -2.0, 0.0], "p_max": [2.0, 2.0, 2.0],
+                                         "indices": [0, 1, 2], "gain": np.ones(3),
+                                         "safe_displacement_gain": 1.0, "name": "box",
+                                         "block": None}),
+        "SafeDisplacement": (safe_displacement, lambda rng: {
+            "barrier": tasks.PositionBarrier(robot, "ee", p_max=[2.0, 2.0, 2.0],
+                                             safe_displacement_gain=1.0, name="box"),
+            "name": "safe"}),
+        "BodySphericalBarrier": (_in_stack(tasks.BodySphericalBarrier, velocities, hard=True),
+                                 lambda rng: {"robot": robot, "frames": ("ee", "base_link"),
+                                              "d_min": 0.2, "gain": 1.0,
+                                              "safe_displacement_gain": 3.0, "name": "sphere",
+                                              "block": None}),
+        "AxisAlignTask": (_in_stack(tasks.AxisAlignTask, velocities), lambda rng: {
+            "robot": robot, "frame": "ee", "axis": (0.0, 0.0, 1.0), "gain": 0.5,
+            "weight": np.ones(3), "lm_damping": 0.0, "name": "axis", "block": None}),
+        "LookAtTask": (_in_stack(tasks.LookAtTask, velocities), lambda rng: {
+            "robot": robot, "frame": "ee", "axis": (1.0, 0.0, 0.0), "gain": 0.5,
+            "weight": np.ones(3), "lm_damping": 1e-3, "name": "gaze", "block": None}),
+        "ManipulabilityTask": (_in_stack(tasks.ManipulabilityTask, velocities), lambda rng: {
+            "robot": robot, "frame": "ee", "rate": 0.1, "weight": 1.0, "lm_damping": 0.0,
+            "name": "manipulability", "joints": None, "block": None}),
+        "CollisionAvoidance": (_in_stack(tasks.CollisionAvoidance, panda_velocities,
+                                         hard=True), lambda rng: {
+            "robot": panda, "pairs": collisions, "d_min": 0.02, "gain": 0.5, "max_pairs": 2,
+            "name": "collision", "block": None}),
         "robots.load": (wbc.robots.load, lambda rng: {"name": "omni4_arm6"}),
         "robots.make_base": (wbc.robots.make_base, lambda rng: {"name": "mecanum"}),
         "robots.from_urdf": (wbc.robots.from_urdf, lambda rng: {
             "urdf": ur5, "base": "omni", "ee_frame": "tool0", "mount": np.eye(4),
             "name": "r", "locked_joints": (), "v_max": np.ones(6), "a_max": np.ones(6),
             "home": np.zeros(6)}),
+        "robots.from_urdf(root=free_flyer)": (wbc.robots.from_urdf, lambda rng: {
+            "urdf": pendulum, "root": "free_flyer", "ee_frame": "link2", "name": "pendulum",
+            "locked_joints": (), "v_max": np.ones(2), "a_max": np.ones(2),
+            "home": np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.1, 0.2])}),
+        "robots.from_urdf(root=planar)": (wbc.robots.from_urdf, lambda rng: {
+            "urdf": pendulum, "root": "planar", "ee_frame": "link2", "name": "pendulum",
+            "locked_joints": (), "v_max": np.ones(2), "a_max": np.ones(2),
+            "home": np.zeros(5)}),
+        "robots.from_urdf(root=fixed)": (wbc.robots.from_urdf, lambda rng: {
+            "urdf": pendulum, "root": "fixed", "ee_frame": "link2", "name": "pendulum",
+            "locked_joints": ("joint2",), "v_max": np.ones(1), "a_max": np.ones(1),
+            "home": np.zeros(1)}),
+        "robots.from_urdf(root=differential)": (wbc.robots.from_urdf, lambda rng: {
+            "urdf": tiago, "root": "differential", "ee_frame": "arm_tool_link",
+            "name": "tiago", "locked_joints": ("head_1_joint", "head_2_joint"),
+            "v_max": np.ones(8), "a_max": np.ones(8), "home": None}),
+        "robots.CollisionModel": (wbc.robots.CollisionModel, lambda rng: {
+            "robot": panda, "urdf": panda.urdf_path, "srdf": panda_srdf, "pairs": None,
+            "obstacles": [ball], "self_collision": bool(rng.random() < 0.5), "convex": True,
+            "package_dirs": ()}),
+        "robots.Obstacle.box": (wbc.robots.Obstacle.box, lambda rng: {
+            "name": "wall", "size": (0.05, 1.0, 1.0), "pose": box_pose.copy()}),
+        "robots.Obstacle.sphere": (wbc.robots.Obstacle.sphere, lambda rng: {
+            "name": "ball", "radius": 0.1, "position": rng.uniform(-1, 1, 3), "pose": None}),
+        "robots.Obstacle.capsule": (wbc.robots.Obstacle.capsule, lambda rng: {
+            "name": "rod", "radius": 0.05, "length": 0.4, "pose": box_pose.copy()}),
         "arms.arm_from_urdf": (arms.arm_from_urdf, lambda rng: {
             "path": ur5, "ee_frame": "tool0", "name": "ur5", "locked_joints": (),
             "locked_values": None, "v_max": np.ones(6), "a_max": np.ones(6),
@@ -539,54 +656,64 @@ def classify_call(call, kwargs: dict) -> tuple[str, str | None, str]:
 
 
 def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | None = None,
-             robots: list | None = None, build=None):
-    """Run about ``cases`` cases: a twentieth of them (at least one per constructor)
-    constructor calls, the rest spread over ``backends`` (a sixth of them robot ticks); stops
-    early after ``seconds`` [s]. ``robots`` and ``build``: the robot family's robots and stack
-    (see :func:`robot_cases`). Returns the JSON-ready result."""
+             robots: list | None = None, build=None, families=FAMILIES):
+    """Run about ``cases`` cases: a twentieth of them (at least :data:`CONSTRUCTOR_MIN`, one
+    per constructor) constructor calls, the rest spread over ``backends`` (a sixth of them robot
+    ticks); stops early after ``seconds`` [s]. ``robots`` and ``build``: the robot family's
+    robots and stack (see :func:`robot_cases`). ``families``: the case families run (a subset
+    of :data:`FAMILIES`; ``("constructors",)`` alone spends every case on constructor calls).
+    Returns the JSON-ready result."""
+    families = tuple(families)
+    unknown = sorted(set(families) - set(FAMILIES))
+    if unknown or not families:
+        raise wbc.InvalidValueError(f"families must be a non-empty subset of {list(FAMILIES)}, "
+                                    f"got {list(families)}")
     robots = robots or catalogue_robots()
-    constructor_calls = max(CONSTRUCTOR_MIN, cases // 20)
-    per_backend = -(-(cases - constructor_calls) // len(backends))  # rounded up
-    per_backend = max(per_backend, 1)
-    robot_ticks = max(1, per_backend // 6 // len(robots))
+    solved = [f for f in ("stack", "robot") if f in families]  # the families on a backend
+    constructor_calls = 0
+    if "constructors" in families:
+        constructor_calls = max(CONSTRUCTOR_MIN, cases // 20) if solved else max(1, cases)
+    per_backend = max(1, -(-(cases - constructor_calls) // len(backends)))  # rounded up
+    robot_ticks = 0
+    if "robot" in families:
+        robot_ticks = max(1, per_backend // (6 if "stack" in families else 1) // len(robots))
     stack_ticks = per_backend - robot_ticks * len(robots)
     draws = 2
     structures = max(1, -(-stack_ticks // (draws * TICKS)))
+
+    def cases_in_order():
+        if constructor_calls:  # constructors do not depend on the backend: once
+            yield from constructor_cases(seed, constructor_calls)
+        for backend in backends if solved else ():
+            if "stack" in families:
+                yield from stack_cases(backend, seed, structures, draws)
+            if "robot" in families:
+                yield from robot_cases(backend, seed, robot_ticks, robots, build)
+            if backend == "daqp" and "stack" in families:  # the fused cascade too
+                yield from stack_cases(backend, seed, structures, draws, fused=True)
+
     outcomes: dict[str, dict[str, int]] = {}
     defects: list[dict] = []
     families_count: dict[str, int] = {}
     total, start = 0, time.perf_counter()
-    for i, backend in enumerate(backends):
+    for case, outcome, defect, message in cases_in_order():
+        counts = outcomes.setdefault(case["backend"], {"error": 0, "failure": 0,
+                                                       "success": 0, "defect": 0})
+        counts[outcome] += 1
+        families_count[case["family"]] = families_count.get(case["family"], 0) + 1
+        total += 1
+        if defect:
+            defects.append({**case, "defect": defect, "message": message[:500]})
         if seconds is not None and time.perf_counter() - start > seconds:
             break
-        families = [stack_cases(backend, seed, structures, draws),
-                    robot_cases(backend, seed, robot_ticks, robots, build)]
-        if backend == "daqp":  # the fused cascade too (the robots' controllers take it anyway)
-            families.append(stack_cases(backend, seed, structures, draws, fused=True))
-        if i == 0:  # constructors do not depend on the backend: once
-            families.insert(0, constructor_cases(seed, constructor_calls))
-        for case, outcome, defect, message in _chain(*families):
-            counts = outcomes.setdefault(case["backend"], {"error": 0, "failure": 0,
-                                                           "success": 0, "defect": 0})
-            counts[outcome] += 1
-            families_count[case["family"]] = families_count.get(case["family"], 0) + 1
-            total += 1
-            if defect:
-                defects.append({**case, "defect": defect, "message": message[:500]})
-            if seconds is not None and time.perf_counter() - start > seconds:
-                break
     return {"cases": total, "families": families_count, "outcomes": outcomes,
             "defects": defects,
-            "parameters": {"seed": seed, "backends": backends, "hang_s": HANG_S,
+            "parameters": {"seed": seed, "backends": backends, "families": list(families),
+                           "hang_s": HANG_S,
                            "robots": [name for name, _ in robots],
                            "stack": getattr(build, "spec", None),
                            "bound_tol": BOUND_TOL, "ticks_per_draw": TICKS,
                            "wall_s": round(time.perf_counter() - start, 1)}}
-
-
-def _chain(*generators):
-    for generator in generators:
-        yield from generator
 
 
 def markdown(result: dict) -> str:
@@ -607,7 +734,8 @@ def markdown(result: dict) -> str:
 
 
 def main(argv=None) -> int:
-    """``wbc fuzz [--cases N] [--backends a,b] [--seconds S] [--seed K] [--out DIR]``."""
+    """``wbc fuzz [--cases N] [--backends a,b] [--families f,g] [--seconds S] [--seed K]
+    [--out DIR]``."""
     parser = argparse.ArgumentParser(prog="wbc fuzz", description="a seeded fuzz campaign "
                                      "over stacks, workspaces and robot controllers")
     parser.add_argument("--cases", type=int, default=10_000)
@@ -615,6 +743,9 @@ def main(argv=None) -> int:
     parser.add_argument("--seconds", type=float, default=None,
                         help="stop after this wall time [s]")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--families", default=",".join(FAMILIES),
+                        help="the case families to run, comma-separated (default: all); "
+                             "'constructors' alone spends every case on constructor calls")
     parser.add_argument("--robot", action="append", default=[], metavar="FILE.toml",
                         help="the robot family on a robot of your own (TOML description; "
                              "repeatable) instead of the catalogue")
@@ -627,9 +758,13 @@ def main(argv=None) -> int:
         parser.error("--cases must be >= 1")
     if args.seconds is not None and not args.seconds > 0:
         parser.error("--seconds must be > 0")
+    families = tuple(f.strip() for f in args.families.split(",") if f.strip())
+    if not families or set(families) - set(FAMILIES):
+        parser.error(f"--families must be a comma-separated subset of {','.join(FAMILIES)}, "
+                     f"got {args.families!r}")
     backends = constructible_backends(parser, args.backends)
     robots, build = user_robots_and_stack(args.robot, args.stack)
-    result = campaign(args.cases, backends, args.seed, args.seconds, robots, build)
+    result = campaign(args.cases, backends, args.seed, args.seconds, robots, build, families)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "fuzz.json").write_text(json.dumps(result, indent=1, default=_plain))
     (args.out / "fuzz.md").write_text(markdown(result))
