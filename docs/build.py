@@ -23,8 +23,8 @@ from pathlib import Path
 MODULES = ["wbc", "wbc.variables", "wbc.terms", "wbc.stack", "wbc.compiler", "wbc.workspace",
            "wbc.controller", "wbc.solution", "wbc.qp", "wbc.quantities", "wbc.infeasibility",
            "wbc.passes", "wbc.cbuild", "wbc.jit", "wbc.fused", "wbc.checks", "wbc.lie",
-           "wbc.aliases", "wbc.errors", "wbc.sim", "wbc.tasks", "wbc.robots", "wbc.solvers",
-           "wbc.solvers.reference", "wbc.papers", "wbc.experiments.studies.study"]
+           "wbc.aliases", "wbc.errors", "wbc.sim", "wbc.viz", "wbc.tasks", "wbc.robots",
+           "wbc.solvers", "wbc.solvers.reference", "wbc.papers", "wbc.experiments.studies.study"]
 ROLE = re.compile(r":(?:class|func|meth|mod|attr|data|exc|obj):`~?([^`]+)`")
 NAMEDTUPLE_LIMITATION = r"Error parsing type annotation .* for wbc\.robots\.\w+\.__init__\."
 
@@ -50,13 +50,14 @@ def main(argv: list[str] | None = None) -> int:
 
     vars(wbc).setdefault("Controller", wbc.Controller)
     # likewise the papers' names that wbc.tasks, wbc.robots and wbc.solvers.reference keep for
-    # compatibility (imported from wbc.papers on first access; the access stores them there)
+    # compatibility (imported from wbc.papers on first access) and the viewer's (imported when
+    # first asked for, so that wbc.viz works without viser)
     import importlib
 
-    for name in ("wbc.tasks", "wbc.robots", "wbc.solvers.reference"):
+    for name in ("wbc.tasks", "wbc.robots", "wbc.solvers.reference", "wbc.viz"):
         module = importlib.import_module(name)
         for public in module.__all__:
-            getattr(module, public)
+            vars(module).setdefault(public, getattr(module, public))
     pdoc.render.configure(docformat="google", show_source=False)
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -1,8 +1,9 @@
 """The ``wbc`` command line: ``wbc list``, ``wbc demo``, ``wbc bench``, ``wbc pink``, ``wbc mink``,
-``wbc placo``, ``wbc study NAME``.
+``wbc placo``, ``wbc fuzz``, ``wbc audit``, ``wbc exactness``, ``wbc reproduce``,
+``wbc study NAME``, ``wbc view DIR``, ``wbc play ROBOT``.
 
 Each sub-command forwards its remaining arguments to the ``main(argv)`` of its experiment
-module, so ``wbc bench --help`` shows that study's own options; ``wbc study NAME ...`` forwards
+module (or the function a ``"module:function"`` entry names), so ``wbc bench --help`` shows that study's own options; ``wbc study NAME ...`` forwards
 to the paper study ``wbc.experiments.studies.NAME`` (see :mod:`wbc.experiments.studies.study`).
 
 Exit codes, for every verb: 0 when the job ran; 2 for a bad argument (argparse's message, on
@@ -38,6 +39,10 @@ COMMANDS = {
                   "on random, saturating and strict-priority states"),
     "reproduce": ("wbc.experiments.reproduce", "every paper study, bench and peers in one "
                   "report (REPORT.md)"),
+    "view": ("wbc.experiments.viewing:view_main",
+             "replay the runs a study wrote, in the browser (needs the [viz] extra)"),
+    "play": ("wbc.experiments.viewing:play_main",
+             "a live playground: a robot following a gizmo, backends swapped live ([viz])"),
 }
 
 
@@ -108,8 +113,10 @@ def main(argv: list[str] | None = None) -> int:
         return guarded("list", list_everything, debug)
     if args.command == "study":
         return guarded("study", lambda: run_study(rest), debug)
-    module = COMMANDS[args.command][0]
-    return guarded(args.command, lambda: importlib.import_module(module).main(rest), debug)
+    module, _, function = COMMANDS[args.command][0].partition(":")
+    return guarded(args.command,
+                   lambda: getattr(importlib.import_module(module), function or "main")(rest),
+                   debug)
 
 
 def guarded(command: str, job: Callable[[], int | None], debug: bool = False) -> int:

@@ -11,7 +11,10 @@ about a minute, for CI; its timings are not meant to be read.
 
 The report: an opening summary (claims reproduced per paper, failures), one section per paper
 with its claims table and figures, the timing tables of ``wbc bench``, the peer table, the
-machine.
+machine. Each paper's section also shows a strip of the robot at four instants of the study's
+main run (:data:`MAIN_RUNS`), rendered from the study's replay record by the 3-D viewer through
+headless Chromium (:func:`wbc.viz.strip.render_strip`) — on full runs, where the ``[viz]``
+extra and a Chromium are installed (otherwise the report says why there is none).
 """
 
 from __future__ import annotations
@@ -36,6 +39,9 @@ PAPERS = {"sorour": "Sorour, Cherubini, Fraisse — steerable wheeled mobile man
           "petric": "Petrič, Žlajpah — spatially modulated velocity fields",
           "omni": "Omnidirectional platform with torque redundancy — slip-avoiding distribution",
           "xing": "Xing et al. — adaptive motion planning (AMP)"}
+#: the run each paper's strip shows (a key of the study's ``<name>_replay.npz``)
+MAIN_RUNS = {"sorour": "table_ii/compensated", "petric": "sine_large/whole_body",
+             "omni": "diagonal/proportional", "xing": "circle_r025/amp_qp"}
 PEERS = {"pink": ("wbc.experiments.peers.vs_pink", "pink", "pip install 'wbc[pink]'"),
          "mink": ("wbc.experiments.peers.vs_mink", "mink", "pip install 'wbc[mink]'"),
          "placo": ("wbc.experiments.peers.vs_placo", "placo", "pip install 'wbc[placo]'")}
@@ -133,8 +139,44 @@ def _paper_section(name: str, out: Path, step: Step) -> tuple[list[str], tuple[i
                          f"{1e6 * t['tick_p95_s']:.1f} |")
     for figure in data.get("figures", [])[:3]:
         lines += ["", f"![{figure}]({name}/{figure})"]
+    strip = out / name / f"{name}_strip.png"
+    if strip.exists():
+        lines += ["", f"The robot in `{MAIN_RUNS[name]}` (`wbc view {out} --run "
+                  f"{name}/{MAIN_RUNS[name]}` replays it):", "",
+                  f"![{strip.name}]({name}/{strip.name})"]
     lines.append("")
     return lines, (held, len(claims))
+
+
+def render_strips(out: Path, quick: bool) -> str:
+    """Render each study's strip (``OUT/<name>/<name>_strip.png``) from its replay record;
+    returns a line for the report: what was rendered, or why not. Never raises."""
+    if quick:
+        return "Robot strips: not rendered in a quick run (`wbc reproduce` renders them)."
+    try:
+        from wbc.errors import WbcError
+        from wbc.viz.browser import browser_unavailable_reason
+        from wbc.viz.record import read_recordings
+        from wbc.viz.strip import render_strips
+    except ImportError as err:  # the [viz] extra is not installed
+        return f"Robot strips: none ({err}; pip install '.[viz]')."
+    reason = browser_unavailable_reason()
+    if reason:
+        return f"Robot strips: none ({reason})."
+    jobs, missing = [], []
+    for name, run in MAIN_RUNS.items():
+        try:
+            recording = read_recordings(out / name / f"{name}_replay.npz")[run]
+            jobs.append((recording, out / name / f"{name}_strip.png", ""))
+        except (WbcError, KeyError) as err:  # the study failed or wrote no record
+            missing.append(f"{name} ({str(err)[:120]})")
+    try:
+        render_strips(jobs)
+    except Exception as err:  # the strips must not lose the report
+        return f"Robot strips: none ({type(err).__name__}: {str(err)[:200]})."
+    done = [str(path.parent.name) for _, path, _ in jobs]
+    return (f"Robot strips rendered for {', '.join(done) or 'no study'}"
+            + (f"; none for {', '.join(missing)}" if missing else "") + ".")
 
 
 def _cell(value) -> str:
@@ -167,7 +209,7 @@ def _peer_rows(out: Path, steps: dict[str, Step]) -> list[str]:
     return lines + [""]
 
 
-def write_report(out: Path, steps: list[Step], quick: bool) -> Path:
+def write_report(out: Path, steps: list[Step], quick: bool, strips: str = "") -> Path:
     by_name = {s.name: s for s in steps}
     for name in [*(f"study {p}" for p in PAPERS), "bench", *PEERS]:
         by_name.setdefault(name, Step(name, "", [], status="not run",
@@ -193,6 +235,8 @@ def write_report(out: Path, steps: list[Step], quick: bool) -> Path:
             f"Python {machine['python']}." + (" **Quick run: short horizons, timings not "
                                                "meaningful.**" if quick else ""), "",
             "## Summary", "", *summary]
+    if strips:
+        head += ["", strips]
     if failed:
         head += ["", "Failed steps:", *[f"- `{s.name}`: {s.reason}" for s in failed]]
     if skipped:
@@ -226,7 +270,8 @@ def main(argv: list[str] | None = None) -> int:
     for done, step in enumerate(steps, start=1):
         run_step(step, log_dir)
         report_progress(done, len(steps), f"{step.name}: {step.status} ({step.seconds:.0f} s)")
-    report = write_report(args.out, steps, args.quick)
+    strips = render_strips(args.out, args.quick)
+    report = write_report(args.out, steps, args.quick, strips)
     failed = [s.name for s in steps if s.status == "failed"]
     print(f"wrote {report} in {time.perf_counter() - started:.0f} s"
           + (f"; failed: {', '.join(failed)}" if failed else ""))

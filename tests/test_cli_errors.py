@@ -111,6 +111,8 @@ BAD_ARGUMENTS = [
     (["audit", "--ticks", "0"], "--runs and --ticks must be >= 1"),
     (["audit", "--levels", "torque"], "unknown level 'torque'"),
     (["audit", "--backends", "nosuch"], "unknown or unavailable QP backend 'nosuch'"),
+    (["view", "/nonexistent/results"], "no such file or folder"),
+    (["play", "r2d2", "--seconds", "1"], "unknown robot"),
     (["study"], "the study NAME is missing"),
     (["study", "nosuch"], "unknown study 'nosuch'"),
 ]
@@ -130,7 +132,7 @@ CASES = ([(tuple(args), None) for args, _ in BAD_ARGUMENTS]
 @pytest.fixture(scope="module")
 def ran() -> dict:
     """``(args, hide) -> Done`` for every case, each in a forked child."""
-    for module in [*(m for m, _ in COMMANDS.values()),
+    for module in [*(m.partition(":")[0] for m, _ in COMMANDS.values()),
                    *(f"wbc.experiments.{name}" for name in AVAILABLE_STUDIES)]:
         importlib.import_module(module)  # imported once, here, not in every child
     return {case: forked_wbc(*case) for case in CASES}

@@ -20,7 +20,8 @@ def test_every_example_is_tested():
     tested = {"compose_and_swap_backends", "mobile_manipulator_reach",
               "acceleration_joint_limits", "priorities_vs_weights", "time_your_stack",
               "humanoid_reach",  # humanoid_reach: tests/test_robots_roots.py
-              "collision_avoidance"}  # collision_avoidance: tests/test_collision.py
+              "collision_avoidance",  # collision_avoidance: tests/test_collision.py
+              "viewer_own_stack"}
     assert {path.stem for path in EXAMPLES.glob("*.py")} == tested
 
 
@@ -64,3 +65,12 @@ def test_time_your_stack(jit):
     stats = example("time_your_stack")(argv)["daqp"]
     assert stats["tick_median_us"] > 0
     assert stats["tick_median_us"] >= stats["solve_median_us"] > 0
+
+
+def test_viewer_own_stack():
+    pytest.importorskip("viser", reason='the [viz] extra is not installed')
+    out = example("viewer_own_stack")(["--seconds", "1.0", "--port", "0"])
+    assert out["frames"] == 20  # 1 s at 20 pictures per second
+    assert max(out["errors"][5:]) < 0.03  # the hand follows the moving target within 3 cm
+    assert out["base_path"] >= 2  # the base moved and its path was drawn
+

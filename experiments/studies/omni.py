@@ -46,6 +46,7 @@ from wbc.papers.omni import closed_form as ref
 from wbc.robots.omni import OmniBase
 from wbc.sim import Simulation
 from wbc.solvers import available_backends
+from wbc.viz.record import Recording
 
 from .study import Claim, StudyResult, replay_timing, save_figure, study_main
 
@@ -447,12 +448,16 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     runs: dict[str, dict] = {}
     numbers: dict[str, dict] = {}
     states: list = []
+    replays: dict[str, Recording] = {}
     for scenario, (direction, _) in SCENARIOS.items():
         runs[scenario], numbers[scenario] = {}, {}
         for method in METHODS:
             simulated, references, controller = simulate(robot, scenario, method, backend,
                                                          substeps)
             s = series(simulated, references)
+            replays[f"{scenario}/{method}"] = Recording.from_run(
+                simulated, target=np.array([references(t)["target"][:2] for t in simulated.t]),
+                robot="omni4_arm6")
             if method in DISTRIBUTIONS:
                 s["_raw"] = {"command": simulated.command, "J": base.jacobian,
                              "wrench": controller.wrench, "forces": controller.forces}
@@ -493,7 +498,7 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
                              for k, v in runs.items()},
                        timing=timings, figures=figures(runs, numbers, Path(out_dir)),
                        summary_md=SUMMARY + "\n".join(table + qp_table), parameters=parameters,
-                       failures=failures)
+                       failures=failures, replays=replays, robot="omni4_arm6")
 
 
 def main(argv=None) -> int:

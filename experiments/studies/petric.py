@@ -65,6 +65,7 @@ from wbc.papers.petric import (
 from wbc.robots import load
 from wbc.sim import Simulation, actuation
 from wbc.solvers import available_backends
+from wbc.viz.record import Recording
 
 from .study import Claim, StudyResult, save_figure, study_main, timing_summary
 
@@ -457,6 +458,7 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     paper_projector = DecoupledController(robot, VelocityField(), backend, projector="damped")
     whole_body = WholeBodyController(robot, VelocityField(), backend)
     runs: dict = {}
+    replays: dict[str, Recording] = {}
     for name in SCENARIOS:
         runs[name] = {}
         methods: list[tuple[str, DecoupledController | WholeBodyController, bool]] = [
@@ -471,6 +473,9 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
             result = _simulate(robot, controller, name, scale)
             leak = _leak(robot, result) if method == "decoupled" else None
             runs[name][method] = _series(result, leak)
+            replays[f"{name}/{method}"] = Recording.from_run(
+                result, target=result.signals["ee_desired"], ee=result.signals["ee_position"],
+                robot=ROBOT)
     decoupled.move_base = True
     slices = _field_slices(field)
     modes = _mode_timing(VelocityField(), 300 if quick else 2000)
@@ -502,7 +507,7 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
                                                   "omega_max", "alpha", "dv_max", "domega_max")},
     }
     return StudyResult("petric", claims, runs, timing, figures, _summary(quick, failed),
-                       parameters)
+                       parameters, replays=replays, robot=ROBOT)
 
 
 def _summary(quick: bool, failed: dict[str, int]) -> str:

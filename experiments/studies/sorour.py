@@ -39,6 +39,7 @@ from wbc.sim import Simulation
 from wbc.solvers import available_backends
 from wbc.tasks import RpyPoseTask
 from wbc.tasks.rpy_pose import pose_error
+from wbc.viz.record import Recording
 
 from .study import Claim, StudyResult, replay_timing, save_figure, study_main
 
@@ -313,9 +314,13 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     q0 = initial_configuration(robot)
     seconds = 10.0 if quick else DURATION
     runs, states = {}, []
+    replays: dict[str, Recording] = {}
     for v in VARIANTS:
         simulated = simulate(robot, v, backend, q0, seconds)
         runs[v] = series(robot, simulated)
+        replays[f"table_ii/{v}"] = Recording.from_run(
+            simulated, target=np.array([target_at(t)[:3] for t in simulated.t]),
+            robot="mpo700_lwr4")
         if v == "compensated":
             every = max(1, len(simulated.t) // 200)
             states = [(q, target_at(t)) for q, t in zip(simulated.q[::every],
@@ -332,7 +337,8 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
         failures=failures,
         parameters={**PARAMETERS, "q_dex": Q_DEX.tolist(), "initial_pose": INITIAL_POSE.tolist(),
                     "poses": [[s, list(p)] for s, p in POSES], "duration_s": seconds,
-                    "q0": q0.tolist(), "backend": backend})
+                    "q0": q0.tolist(), "backend": backend},
+        replays=replays, robot="mpo700_lwr4")
 
 
 def main(argv=None) -> int:

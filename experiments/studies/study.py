@@ -24,7 +24,10 @@ Output contract (the same for every paper), written by :meth:`StudyResult.write`
   - ``"parameters"`` and ``"summary"``: what the study chose, in words;
 
 * ``<name>.md``: the claims table, the timing table and the summary, for a person;
-* the PNG figures the study saved with :func:`save_figure` (labelled axes with units).
+* the PNG figures the study saved with :func:`save_figure` (labelled axes with units);
+* ``<name>_replay.npz``: what ``wbc view DIR`` replays — per run (``"<scenario>/<method>"``)
+  the configurations per tick, the status per tick and the target / end-effector traces,
+  float32, thinned to 50 frames per second (``wbc.viz.record``; not in the JSON).
 """
 
 from __future__ import annotations
@@ -82,6 +85,9 @@ class StudyResult:
         summary_md: markdown: models and parameters chosen, discussion.
         parameters: the study's parameters (JSON-ready).
         failures: what failed and why (a study that lost a scenario says so here).
+        replays: ``"<scenario>/<method>" -> wbc.viz.record.Recording`` of the runs,
+            written to ``<name>_replay.npz`` (not part of the JSON).
+        robot: the catalogue name of the robot the replays move.
     """
 
     name: str
@@ -92,6 +98,8 @@ class StudyResult:
     summary_md: str = ""
     parameters: dict = field(default_factory=dict)
     failures: list[str] = field(default_factory=list)
+    replays: dict = field(default_factory=dict)
+    robot: str = ""
 
     def to_json(self) -> dict:
         return {"name": self.name, "claims": [asdict(c) for c in self.claims],
@@ -129,6 +137,10 @@ class StudyResult:
         with open(folder / f"{self.name}.json", "w") as f:
             json.dump(self.to_json(), f, default=_json_default, allow_nan=False)
         (folder / f"{self.name}.md").write_text(self.markdown())
+        if self.replays:
+            from wbc.viz.record import save_recordings
+
+            save_recordings(folder / f"{self.name}_replay.npz", self.replays, self.robot)
         return folder
 
 

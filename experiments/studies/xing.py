@@ -56,6 +56,7 @@ from wbc.solvers import available_backends
 from wbc.tasks import joint_acceleration_bounds
 from wbc.tasks.frame import so3_log
 from wbc.tasks.manipulability import arm_jacobian, smallest_singular_value
+from wbc.viz.record import Recording
 
 from .study import Claim, StudyResult, save_figure, study_main, timing_summary
 
@@ -151,7 +152,9 @@ def simulate(robot, planner, references, seconds: float, setup: Setup, seed: int
     series = {k: np.round(v, 6) for k, v in series.items()}
     return {**series, "limit_violations": int(violations.sum()), "failures": run.failures,
             "tick_s": run.tick_s, "model_s": run.model_s, "assembly_s": run.assembly_s,
-            "solve_s": run.solve_s}
+            "solve_s": run.solve_s,
+            # what `wbc view` replays (popped by run() before the JSON is written)
+            "_replay": Recording.from_run(run, target=targets, robot=ROBOT)}
 
 
 # ---------------------------------------------------------------------------- analysis
@@ -495,17 +498,19 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     eq = equivalence(robot, 100 if quick else 1000, jit=jit)
     claims = _claims(runs, timing, loops, eq)
     figures = _figures(runs, out_dir)
-    for methods in runs.values():  # timings are summarised in "timing", not kept per tick
-        for s in methods.values():
-            for key in ("tick_s", "model_s", "assembly_s", "solve_s"):
-                s.pop(key)
+    replays = {}
+    for key, methods in runs.items():  # timings are summarised in "timing", not kept per tick
+        for method, s in methods.items():
+            for name in ("tick_s", "model_s", "assembly_s", "solve_s"):
+                s.pop(name)
+            replays[f"{key}/{method}"] = s.pop("_replay")
     parameters = {"robot": ROBOT, "dt_s": DT, "position": asdict(POSITION),
                   "pose": asdict(POSE), "odometry": {"scale": [0.03, -0.03, 0.03],
                                                      "noise": [0.02, 0.02, 0.02]},
                   "moving_threshold": MOVING, "quick": quick, "timing_split_s": split,
                   "bounds_loops": loops, "equivalence": eq}
     return StudyResult("xing", claims, runs, timing, figures, _summary(split, eq, loops),
-                       parameters, failures)
+                       parameters, failures, replays=replays, robot=ROBOT)
 
 
 def _summary(split: dict, eq: dict, loops: dict) -> str:
