@@ -3,8 +3,9 @@
 ``wbc study NAME``, ``wbc view DIR``, ``wbc play ROBOT``.
 
 Each sub-command forwards its remaining arguments to the ``main(argv)`` of its experiment
-module (or the function a ``"module:function"`` entry names), so ``wbc bench --help`` shows that study's own options; ``wbc study NAME ...`` forwards
-to the paper study ``wbc.experiments.studies.NAME`` (see :mod:`wbc.experiments.studies.study`).
+module (or the function a ``"module:function"`` entry names), so ``wbc bench --help`` shows
+that study's own options; ``wbc study NAME ...`` forwards to the paper study
+``wbc.experiments.studies.NAME`` (see :mod:`wbc.experiments.studies.study`).
 
 Exit codes, for every verb: 0 when the job ran; 2 for a bad argument (argparse's message, on
 stderr); 1 when it failed at run time — a :class:`~wbc.WbcError` (e.g. a missing optional peer,
