@@ -375,8 +375,11 @@ def test_fuzz_and_audit_take_a_user_robot_and_stack(in_data, tmp_path):
 def test_referee_answers_are_certified_by_their_kkt_residuals():
     """A level QP of ``three_levels`` / ``far`` on mecanum_gen3 (tick 113) where quadprog
     (tight) returned a feasible, non-optimal point (kept in the file): the KKT check refuses
-    it, and the export's referee answers with a certified solution (the QP is badly
-    conditioned, cond(H) ≈ 4e6: certified answers agree on the objective, to 1e-9)."""
+    it, and the export's referee answers with a certified solution. The QP is badly
+    conditioned (cond(H) ≈ 4e6): quadprog, now re-solving such a level with its sides relaxed
+    by its feasibility tolerance (solvers/quadprog_backend.py), and daqp's tight profile give
+    certified answers 2e-5 apart (duality gap 2.3e-5), so they agree on the objective to 1e-4,
+    not to round-off."""
     data = np.load(DATA / "quadprog_nonoptimal_level.npz")
     qp = tuple(data[k] for k in ("H", "g", "A", "lA", "uA", "lb", "ub"))
     stored = QPResult(data["x_quadprog"], Status.SOLVED, data["y"], data["z"])
@@ -389,7 +392,8 @@ def test_referee_answers_are_certified_by_their_kkt_residuals():
     x = accuracy.Referee().solve(qp)
     objective = [0.5 * z @ qp[0] @ z + qp[1] @ z for z in (stored.x, exact.x, x)]
     assert objective[1] < objective[0] - 0.05  # the stored point is not optimal
-    assert objective[2] == pytest.approx(objective[1], abs=1e-9)
+    assert objective[2] == pytest.approx(objective[1], abs=1e-4)
+    assert np.abs(x - exact.x).max() < 1e-4
 
 
 def test_summary_statistics_closed_forms():

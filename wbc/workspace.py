@@ -71,6 +71,11 @@ DEAD_TOL = 1e-12
 #: After a failed solve, how close (relative) to a side ``x`` above counts as on it when the
 #: level's implicit equalities are looked for (see :func:`_implicit_equalities`).
 RETRY_ACTIVE_TOL = 1e-5
+#: The largest weight of a row in the certificate of implicit equalities
+#: (:func:`_implicit_equalities`): 1/√ε, so a row whose weight is below √ε of the largest —
+#: roundoff of an exact dependence among the others — is not taken for one. Missing a row
+#: leaves the level failed (a status); taking a wrong one would change its answer silently.
+GORDAN_MAX = 1.0 / np.sqrt(np.finfo(float).eps)
 _FIXED_ABOVE = ("a constraint of this level that the levels above fix completely is violated "
                 "at their optimum")
 _INCONSISTENT = ("the task's equations are inconsistent (target outside the range of its "
@@ -147,8 +152,8 @@ def _implicit_equalities(state: _BlockState) -> np.ndarray:
     solvers call infeasible) holds as an equality on the whole feasible set if and only if some
     non-negative combination of the active rows, oriented into the feasible side, with a
     positive weight on it, is zero (Gordan). One LP finds every such row: maximise ``Σ t``
-    over ``0 <= t <= 1``, ``t <= λ``, ``λ >= 0``, ``Σ λ_i s_i g_i = 0``. Runs only when a
-    level failed (milliseconds, scipy's HiGHS)."""
+    over ``0 <= t <= 1``, ``t <= λ``, ``0 <= λ <=`` :data:`GORDAN_MAX`,
+    ``Σ λ_i s_i g_i = 0``. Runs only when a level failed (milliseconds, scipy's HiGHS)."""
     from scipy.optimize import linprog
 
     m, n = state.m_rows, state.N.shape[0]
@@ -170,9 +175,21 @@ def _implicit_equalities(state: _BlockState) -> np.ndarray:
     cost = np.concatenate((np.zeros(k), -np.ones(k)))
     A_eq = np.hstack((G.T, np.zeros((n, k))))
     A_ub = np.hstack((-np.eye(k), np.eye(k)))  # t − λ <= 0
-    bounds = [(0, None)] * k + [(0, 1)] * k
+    # λ <= GORDAN_MAX: a row counts (t > 1/2, so λ > 1/2) only with a weight above about
+    # 1/GORDAN_MAX of the largest; an exact dependence among the other rows, scaled up without
+    # bound, would otherwise lift a row whose weight in it is roundoff (1e-14 of the largest)
+    # to λ >= 1 and freeze a row that is not an implicit equality — a smaller feasible set, a
+    # "solved" level 0.1–0.8 rad/s off (ticks of `wbc bench`, mpo700_lwr4 / three_levels)
+    bounds = [(0, GORDAN_MAX)] * k + [(0, 1)] * k
     result = linprog(cost, A_ub=A_ub, b_ub=np.zeros(k), A_eq=A_eq, b_eq=np.zeros(n),
                      bounds=bounds, method="highs")
+    if result.status != 0:
+        # HiGHS's presolve gives up ("numerical difficulties") on active rows that are
+        # dependent to roundoff — the very case this LP is for (4 false INFEASIBLE levels in
+        # 350 ticks of mpo700_lwr4 / three_levels / unreachable in `wbc bench`); the same LP
+        # without presolve solves them
+        result = linprog(cost, A_ub=A_ub, b_ub=np.zeros(k), A_eq=A_eq, b_eq=np.zeros(n),
+                         bounds=bounds, method="highs", options={"presolve": False})
     if result.status != 0:
         return np.zeros((0, n))
     implicit = sorted({i for (i, _), t in zip(rows, result.x[k:], strict=True) if t > 0.5})

@@ -9,7 +9,8 @@ Neither is trusted on its status alone: a referee's answer counts only when it i
 level's data scale (:func:`certified`). quadprog's answer is the reference when certified,
 else clarabel's (counted as ``referee_switches``: on ``three_levels`` / ``far`` of mecanum_gen3,
 quadprog ``tight`` returned a feasible but non-optimal level — dual residual 0.48, the last
-joint 0.36 rad/s off — on 30 of 200 ticks, where clarabel and daqp agree to 1e-9). Where both
+joint 0.36 rad/s off — on 30 of 200 ticks, until its adapter checked its stationarity
+residual and re-solved such levels, see :mod:`wbc.solvers.quadprog_backend`). Where both
 certify, their distance is the tick's *referee gap*; as in ``wbc exactness`` a tick is judged
 only where it is at most :data:`REFEREE_AGREE` — damping leaves levels near singular
 configurations badly conditioned, and two certified answers then differ by up to 2 rad/s
