@@ -28,11 +28,21 @@ A tick at time ``t = k·dt``:
    same way. Without actuation errors the two are identical.
 
 Everything is seeded (``seed``): two runs of the same simulation give the same numbers.
+
+Plants. ``Simulation(..., plant=None)`` (the default) is the kinematic plant above. A plant
+object replaces steps 2–4: ``plant.reset(q0, v0, dt, command) -> (q, v)`` once per run, then each
+tick ``plant.step(command) -> PlantStep`` with the true ``q``, ``v`` at the period's end, the
+``v_measured`` the encoders saw (the estimate integrates it) and per-tick ``signals`` (recorded in
+``run.signals``); actuation models are refused with a plant. :class:`MujocoPlant`
+(:mod:`wbc.sim.mujoco_plant`, model by :mod:`wbc.sim.mjcf`; the ``[mujoco]`` extra) is real
+physics: wheels with rollers on a floor with friction, servos with torque limits.
 """
 
 from __future__ import annotations
 
 from . import actuation
+from .mujoco_plant import MujocoPlant, PlantStep  # imports mujoco only when a plant is made
 from .simulation import Run, Simulation, Tick, position_error
 
-__all__ = ["Run", "Simulation", "Tick", "actuation", "position_error"]
+__all__ = ["MujocoPlant", "PlantStep", "Run", "Simulation", "Tick", "actuation",
+           "position_error"]

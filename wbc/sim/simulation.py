@@ -53,7 +53,7 @@ class Run:
         q: true configuration at each tick's start, ``(N, nq)``.
         q_est: the configuration the controller was given, ``(N, nq)``.
         v: true velocity the robot moved with during the tick (velocity commands) or at its
-            end (other commands), ``(N, nv)``.
+            end (other commands, and every command on a plant), ``(N, nv)``.
         v_est: the velocity the controller was given, ``(N, nv)``.
         command: the controller's commands, ``(N, n_command)``.
         status: the solution status per tick (``"solved"``, ``"infeasible"``, ...; ``""`` for a
@@ -154,11 +154,18 @@ class Simulation:
             more than the robot's velocities or accelerations (e.g. slacks).
         seed: seed of the random generator the actuation models draw from.
         signals: ``name -> fn(tick) -> float | array``, recorded every tick (see :class:`Tick`).
+        plant: what the truth moves with: ``None`` (default) integrates it kinematically
+            through the actuation chain; a plant object (``reset(q0, v0, dt, command)``,
+            ``step(command)``, e.g. :class:`wbc.sim.MujocoPlant`) advances physics instead —
+            the estimate then integrates what its encoders measured (or is the configuration
+            the plant measured, ``step.q_measured``), its signals are recorded,
+            and actuation models are refused (the physics is the actuation).
     """
 
     def __init__(self, robot, controller, dt: float, actuation: Sequence[Actuation] = (),
                  command: str = VELOCITY, command_map: Callable | None = None, seed: int = 0,
-                 signals: Mapping[str, Callable[[Tick], object]] | None = None) -> None:
+                 signals: Mapping[str, Callable[[Tick], object]] | None = None,
+                 plant=None) -> None:
         dt = float(dt)
         if not np.isfinite(dt) or dt <= 0:
             raise InvalidValueError(f"dt must be a finite number > 0, got {dt!r}")
@@ -166,6 +173,15 @@ class Simulation:
             raise WbcError(f"controller must have a step(q, v, **references) method, got "
                            f"{type(controller).__name__}")
         self.actuation = list(actuation)
+        if plant is not None:
+            if not (callable(getattr(plant, "reset", None))
+                    and callable(getattr(plant, "step", None))):
+                raise WbcError(f"plant must have reset(q0, v0, dt, command) and step(command) "
+                               f"methods, got {type(plant).__name__}")
+            if self.actuation:
+                raise WbcError("actuation models act on the kinematic plant only: with a plant, "
+                               "the physics is the actuation")
+        self.plant = plant
         for position, model in enumerate(self.actuation):
             if not isinstance(model, Actuation):
                 raise WbcError(f"actuation models must be wbc.sim.actuation.Actuation objects, "
@@ -200,6 +216,8 @@ class Simulation:
             raise InvalidValueError(f"a run needs at least one tick, got {n}")
         q = self._state(self.robot.neutral() if q0 is None else q0, self.nq, "q0")
         v = self._state(np.zeros(self.nv) if v0 is None else v0, self.nv, "v0")
+        if self.plant is not None:
+            q, v = self.plant.reset(q, v, self.dt, self.command)
         q_est, v_est = q.copy(), v.copy()
         rng = np.random.default_rng(self.seed)
         for model in self.actuation:
@@ -223,6 +241,10 @@ class Simulation:
             if not all_finite(command):
                 raise NonFiniteError(f"the controller commanded NaN or inf at t = {t:.6g} s")
             solution = getattr(self.controller, "last_solution", None)
+            if self.plant is not None:
+                q, v, q_est, v_est = self._plant_tick(rows, signals, refs, solution, tick, t,
+                                                      command, q, v, q_est, v_est)
+                continue
             v_command, v_true = self._velocity_command(command, v, v_est)
             state = ActuationState(self.dt, t, rng, self.robot, command, q, v, q_est, v_est,
                                    v_command)
@@ -258,6 +280,39 @@ class Simulation:
                                   for k, val in rows.items()}
         return Run(**arrays, signals={k: np.asarray(val) for k, val in signals.items()},
                    q_final=q, q_est_final=q_est, v_final=v, dt=self.dt, nv_base=self.nv_base)
+
+    def _plant_tick(self, rows, signals, refs, solution, tick, t, command, q, v, q_est,
+                    v_est):
+        """One tick on :attr:`plant`: record the tick's row, advance the plant; return the new
+        ``(q, v, q_est, v_est)`` (the estimate integrates what the encoders measured)."""
+        raw = command
+        if self.command in (VELOCITY, ACCELERATION):
+            raw = command if self.command_map is None else np.asarray(
+                self.command_map(command), dtype=float).reshape(-1)
+            if raw.shape != (self.nv,):
+                raise ShapeError(f"a {self.command} command must have nv = {self.nv} entries, "
+                                 f"got {raw.shape[0]}; pass command_map= to select them")
+        step = self.plant.step(raw)
+        q_new = self._state(step.q, self.nq, "the plant's configuration")
+        v_new = self._state(step.v, self.nv, "the plant's velocity")
+        v_meas = self._state(step.v_measured, self.nv, "the plant's measured velocity")
+        rows["t"].append(t)
+        rows["q"].append(q)
+        rows["q_est"].append(q_est)
+        rows["v"].append(v_new)
+        rows["v_est"].append(v_est)
+        rows["command"].append(command)
+        self._record_solution(rows, solution, tick)
+        for name, fn in self.signals.items():
+            signals[name].append(fn(Tick(t, q, q_est, v, command, refs, solution,
+                                         self._probe)))
+        for name, value in step.signals.items():
+            signals.setdefault(name, []).append(value)
+        if getattr(step, "q_measured", None) is not None:
+            q_est = self._state(step.q_measured, self.nq, "the plant's measured configuration")
+        else:
+            q_est = self.robot.integrate(q_est, v_meas, self.dt)
+        return q_new, v_new, q_est, v_meas
 
     def _velocity_command(self, command: np.ndarray, v: np.ndarray, v_est: np.ndarray):
         """``(v_command, v_true)``: the velocity the actuators are asked for — the command, or

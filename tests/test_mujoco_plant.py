@@ -1,0 +1,240 @@
+"""wbc.sim.MujocoPlant: the physics plant rolls the bases without slip when driven slowly, its
+arm servos track, the omni platform's wheels carry the weight the statics give, a wheel pushed
+past μ·f_n slips, and one controller object runs on both plants."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco", reason="MujocoPlant needs the mujoco package ([mujoco] extra)")
+
+import wbc  # noqa: E402
+import wbc.robots  # noqa: E402
+from wbc.errors import InvalidValueError, ShapeError, WbcError  # noqa: E402
+from wbc.robots.omni import ARM_MASS, PLATFORM_MASS, normal_forces, system_com  # noqa: E402
+from wbc.robots.resources import urdf_path  # noqa: E402
+from wbc.sim import Simulation, actuation, mjcf  # noqa: E402
+from wbc.sim.mujoco_plant import MujocoPlant  # noqa: E402
+from wbc.tasks import ConfigurationLimit, FrameTask, VelocityLimit  # noqa: E402
+
+DT = 0.01
+
+
+class Constant:
+    """A controller commanding the same vector every tick."""
+
+    def __init__(self, command) -> None:
+        self.command = np.asarray(command, dtype=float)
+
+    def step(self, q, v=None, **references):
+        return self.command
+
+
+def drive(name: str, twist, seconds: float = 2.0, **plant):
+    robot = wbc.robots.load(name)
+    command = np.zeros(robot.nv)
+    command[:len(twist)] = twist
+    return robot, Simulation(robot, Constant(command), DT,
+                             plant=MujocoPlant(robot, **plant)).run(seconds=seconds)
+
+
+SLOW = {  # (robot, base velocity coordinates): forward, sideways, turning, for each base
+    "steerable": ("mpo700_lwr4", [[0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.2]]),
+    "differential": ("tiago_panda", [[0.1, 0], [0, 0.2], [0.1, 0.1]]),
+    "omni": ("omni4_arm6", [[0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.2]]),
+    "mecanum": ("mecanum_gen3", [[0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.2]]),
+}
+CASES = [(base, name, twist) for base, (name, twists) in SLOW.items() for twist in twists]
+
+
+@pytest.mark.parametrize("base, name, twist", CASES,
+                         ids=[f"{c[0]}-{i % 3}" for i, c in enumerate(CASES)])
+def test_a_base_driven_slowly_rolls_without_slip(base, name, twist):
+    # the twist MuJoCo measures on the base body against the base model's forward kinematics
+    # of the wheel joints (odometry), averaged after the first 0.5 s, within 2 %
+    robot, run = drive(name, twist)
+    true = run.v[50:, :robot.nv_base].mean(axis=0)
+    odometry = run.v_est[50:, :robot.nv_base].mean(axis=0)
+    assert np.linalg.norm(true - odometry) <= 0.02 * np.linalg.norm(odometry)
+    assert np.linalg.norm(odometry - twist) <= 0.05 * np.linalg.norm(twist)  # servos track
+
+
+def test_an_arm_joint_tracks_a_commanded_velocity():
+    robot = wbc.robots.load_panda()
+    command = np.zeros(robot.nv)
+    command[3] = 0.3  # rad/s, the Panda's 4th joint
+    q0 = 0.5 * (robot.model.lowerPositionLimit + robot.model.upperPositionLimit)
+    q0[3] -= 0.5  # room for the 0.3 rad it travels
+    run = Simulation(robot, Constant(command), DT, plant=MujocoPlant(robot)).run(
+        seconds=1.0, q0=q0)
+    assert np.allclose(run.v[20:, 3], 0.3, rtol=0.01)
+    others = np.delete(np.arange(robot.nv), 3)
+    assert np.abs(run.v[20:, others]).max() < 0.01
+    # the servo integrates the commanded rate: the joint is where the rate puts it
+    assert run.q_final[3] - q0[3] == pytest.approx(0.3 * 1.0, abs=0.01)
+    assert run.signals["saturation"].max() == 0.0
+
+
+#: arm configurations (shoulder pan, shoulder lift, elbow) [rad] of the omni robot where the
+#: statics are well posed (no wheel under a third of the mean load): folded, out sideways, back
+POSES = ((0.0, -1.29, -1.03), (0.8, -1.5708, 1.5708), (-1.0, -2.0, 1.5708))
+
+
+def omni_pose(robot, pose):
+    q = robot.neutral()
+    q[3:6] = pose
+    return q
+
+
+@pytest.mark.parametrize("pose", POSES)
+def test_the_omni_platform_at_rest_carries_the_statics_normal_forces(pose):
+    assert mjcf.PAPER_MASSES["omni4_arm6"] == (PLATFORM_MASS, ARM_MASS)
+    robot = wbc.robots.load("omni4_arm6")
+    q0 = omni_pose(robot, pose)
+    run = Simulation(robot, Constant(np.zeros(robot.nv)), DT,
+                     plant=MujocoPlant(robot)).run(seconds=0.3, q0=q0)
+    mass, com = system_com(robot, q0, frame="base")
+    expected = normal_forces(robot.base.wheel_positions, com, mass)
+    assert expected.min() > 0.33 * expected.mean()
+    measured = run.signals["normal_forces"][-1]
+    assert measured.sum() == pytest.approx(mass * 9.81, rel=1e-3)
+    assert run.signals["base_tilt"][-1] < 0.01  # rad: level on its stiff supports
+    assert np.allclose(measured, expected, rtol=0.05), (measured, expected)
+
+
+def test_a_robot_whose_centre_of_mass_leaves_its_wheels_tips():
+    # a UR5 stretched out 0.4 m above the omni platform: the centre of mass lies 0.17 m ahead,
+    # outside the wheels' support (they touch the floor at ±0.16 m): two wheels lift
+    mount = np.eye(4)
+    mount[2, 3] = 0.4
+    robot = wbc.robots.from_urdf(urdf_path("ur_description/urdf/ur5_robot.urdf"), base="omni",
+                                 ee_frame="tool0", mount=mount)
+    assert robot.com(robot.neutral())[0] > robot.base.wheel_positions[:, 0].max()
+    run = Simulation(robot, Constant(np.zeros(robot.nv)), DT,
+                     plant=MujocoPlant(robot)).run(seconds=0.2)
+    assert run.signals["base_tilt"][-1] > 0.05
+    assert np.sum(run.signals["normal_forces"][-1] == 0.0) == 2
+
+
+def test_a_wheel_pushed_past_mu_fn_slips():
+    # omni platform (arm folded), the same torque on every wheel: it turns in place, on a floor
+    # with μ = 0.3. A wheel passes to the ground about 0.7 τ/r (the rest spins the wheel up):
+    # 7 N at 1 N m, below every wheel's μ·f_n (18 to 48 N): it rolls; 56 N at 8 N m, above
+    # every wheel's: it slips
+    robot = wbc.robots.load("omni4_arm6")
+    plant = MujocoPlant(robot, mu=0.3)
+    q0 = omni_pose(robot, POSES[0])
+    slips = {}
+    for torque in (1.0, 8.0):
+        run = Simulation(robot, Constant(np.full(4, torque)), DT, command="torque",
+                         plant=plant).run(seconds=0.2, q0=q0)
+        slips[torque] = run.signals["slip_distance"].sum(axis=0)
+        assert np.allclose(run.signals["wheel_torque"], torque)  # applied as commanded
+        if torque == 8.0:  # contacts that touch are at the friction limit
+            touching = run.signals["normal_forces"][1:] > 1.0
+            assert np.mean(run.signals["friction_utilisation"][1:][touching] > 0.99) > 0.9
+    assert slips[8.0].min() > 0.02  # m, every wheel slid
+    assert slips[1.0].max() < 0.05 * slips[8.0].min()
+
+
+def test_the_same_controller_runs_on_both_plants():
+    # a gentle controller (the error's time constant 0.5 s) reaches the target as it believes
+    # it is on both plants; on MuJoCo the wheels slip (the first ticks ask the base for
+    # 0.33 m/s at once: a wheel saturates) and odometry drifts (measured: 2.4e-2 rad of
+    # heading, 15 mm at the hand), so the true error is the drift's and not the controller's
+    robot = wbc.robots.load("omni4_arm6")
+    stack = wbc.Stack(wbc.Variables(v=robot.nv), damping=1e-3)
+    stack.add(FrameTask(robot, "ee", gain=0.02, name="ee"))
+    stack.constrain(ConfigurationLimit(robot, name="position_limits"))
+    stack.constrain(VelocityLimit(robot, name="velocity_limits"))
+    controller = wbc.Controller(robot, stack, dt=DT)
+    target = robot.frame_pose(robot.neutral(), "ee").copy()
+    target[0, 3] += 0.2
+    runs = [Simulation(robot, controller, DT, plant=plant).run(
+        seconds=3.0, references={"ee": target}) for plant in (None, MujocoPlant(robot))]
+
+    def hand(q):
+        return robot.frame_pose(q, "ee")[:3, 3]
+
+    for run in runs:
+        assert run.failures == 0
+        assert np.linalg.norm(hand(run.q_est_final) - target[:3, 3]) < 2e-3  # as it believes
+    kinematic, mujoco = runs
+    assert np.linalg.norm(hand(kinematic.q_final) - target[:3, 3]) < 2e-3
+    true_error = np.linalg.norm(hand(mujoco.q_final) - target[:3, 3])
+    drift = np.linalg.norm(hand(mujoco.q_final) - hand(mujoco.q_est_final))
+    assert drift > 1e-3 and abs(true_error - drift) < 2e-3
+    assert mujoco.signals["slip_distance"].sum() > 0.01  # m: the wheels slid
+    assert "wheel_slip" not in kinematic.signals
+    # given the truth instead of odometry, the controller reaches the true target
+    truth = Simulation(robot, controller, DT, plant=MujocoPlant(robot, odometry=False)).run(
+        seconds=3.0, references={"ee": target})
+    assert np.array_equal(truth.q, truth.q_est)
+    assert np.linalg.norm(hand(truth.q_final) - target[:3, 3]) < 2e-3
+
+
+def acceleration_controller(robot, kp=20.0, kd=9.0):
+    """The hand to its target and the arm to its home at the acceleration level:
+    ``J a + J̇v = kp e − kd J v`` above ``a_arm = −kp (q_arm − q_home) − kd v_arm``."""
+    stack = wbc.Stack(wbc.Variables(a=robot.nv), damping=1e-2)
+    J = stack.quantity("J[ee]", (6, robot.nv))
+    drift = stack.quantity("Jdot_v[ee]", 6)
+    pose = stack.quantity("pose[ee]", (4, 4))
+    q, v = stack.quantity("q", robot.nq), stack.quantity("v", robot.nv)
+    target = stack.parameter("ee.target", (4, 4))
+    a = stack.variables["a"]
+    wanted = kp * (target[:3, 3] - pose[:3, 3]) - kd * (J[:3, :] @ v)
+    stack.add(wbc.Cost(J[:3, :] @ a + drift[:3], wanted, name="ee"))
+    home = robot.neutral()[robot.nq - robot.n_arm:]
+    arm = slice(robot.nv_base, robot.nv)
+    stack.add(wbc.Cost(a[arm], -kp * (q[robot.nq - robot.n_arm:] - home) - kd * v[arm],
+                       name="home"), priority=1)
+    return wbc.Controller(robot, stack, dt=DT)
+
+
+@pytest.mark.filterwarnings("ignore::wbc.errors.MissingLimitsWarning")  # limit-free on purpose
+@pytest.mark.parametrize("name", ["omni4_arm6", "tiago_panda"])
+def test_an_acceleration_level_controller_closes_the_loop_on_mujoco(name):
+    # accelerations reach the arm as inverse-dynamics torques and the base through its wheel
+    # servos; the loop converges as on the kinematic plant (measured 0.8 and 0.6 mm at 2 s,
+    # against 0.16 mm kinematically)
+    robot = wbc.robots.load(name)
+    controller = acceleration_controller(robot)
+    target = robot.frame_pose(robot.neutral(), "ee").copy()
+    target[0, 3] += 0.1
+    run = Simulation(robot, controller, DT, command="acceleration",
+                     plant=MujocoPlant(robot)).run(seconds=2.0, references={"ee": target})
+    assert run.failures == 0
+    assert np.linalg.norm(robot.frame_pose(run.q_final, "ee")[:3, 3] - target[:3, 3]) < 3e-3
+
+
+def test_bad_inputs_raise():
+    robot = wbc.robots.load("omni4_arm6")
+    plant = MujocoPlant(robot)
+    with pytest.raises(InvalidValueError, match="multiple"):
+        Simulation(robot, Constant(np.zeros(robot.nv)), 0.0125, plant=plant).run(ticks=1)
+    with pytest.raises(WbcError, match="actuation"):
+        Simulation(robot, Constant(np.zeros(robot.nv)), DT, plant=plant,
+                   actuation=[actuation.Lag(0.05)])
+    with pytest.raises(WbcError, match="reset"):
+        Simulation(robot, Constant(np.zeros(robot.nv)), DT, plant=object())
+    with pytest.raises(InvalidValueError, match="mu"):
+        MujocoPlant(robot, mu=-1.0)
+    with pytest.raises(WbcError, match="reset"):
+        MujocoPlant(robot).step(np.zeros(robot.nv))
+    with pytest.raises(InvalidValueError, match="odometry"):
+        MujocoPlant(robot, odometry=1)
+    with pytest.raises(ShapeError, match="masses"):
+        MujocoPlant(robot, masses=(15.0, 30.0, 1.0))
+    with pytest.raises(ShapeError, match="entries"):
+        plant.reset(robot.neutral(), np.zeros(robot.nv), DT)
+        plant.step(np.zeros(robot.nv + 1))
+    panda = wbc.robots.load_panda()
+    with pytest.raises(WbcError, match="wheels"):
+        Simulation(panda, Constant(np.zeros(7)), DT, command="torque",
+                   plant=MujocoPlant(panda)).run(ticks=1)
+    flyer = wbc.robots.from_urdf(urdf_path("ur_description/urdf/ur5_robot.urdf"),
+                                 root="free_flyer", ee_frame="tool0")
+    with pytest.raises(WbcError, match="free_flyer"):
+        MujocoPlant(flyer)

@@ -1,0 +1,481 @@
+"""MuJoCo as the plant of :class:`~wbc.sim.Simulation`: real physics under the controller.
+
+::
+
+    from wbc.sim import MujocoPlant, Simulation
+    sim = Simulation(robot, controller, dt=0.01, plant=MujocoPlant(robot))
+    run = sim.run(seconds=5.0, references=...)
+    run.signals["wheel_slip"], run.signals["saturation"], run.signals["normal_forces"]
+
+The model is :func:`wbc.sim.mjcf.build_mjcf`'s (links with pinocchio's inertias, real wheels —
+with passive rollers for omni and mecanum bases — on a floor with friction; every parameter and
+where it comes from is in that module's docstring). Needs the ``mujoco`` package (the
+``[mujoco]`` extra).
+
+The plant interface (what :class:`~wbc.sim.Simulation` calls; any object with these two methods
+is a plant):
+
+* ``reset(q0, v0, dt, command) -> (q, v)``: build the model for the command kind, put the robot
+  in ``q0`` (settled on its wheels at rest for ``settle_s``, then given ``v0``) and return the
+  true state it starts from;
+* ``step(command) -> PlantStep``: advance one control period of ``dt`` (``dt / TIMESTEP``
+  physics sub-steps with the command held) and return the true ``q``, ``v`` at its end, what the
+  encoders measured over it (``v_measured``) and the tick's signals.
+
+Coordinates are wbc's: ``q = [x, y, θ, q_arm]`` (θ unwrapped, the base frame's pose on the
+floor) and ``v`` = the base's own velocity coordinates in the base frame (``(v_x, v_y, ω)``, or
+``(v, ω)`` for the differential drive) then the arm's joint rates. The true twist is the base
+body's, measured by MuJoCo; the measured one (unless ``odometry=False``: then the controller
+is given the truth) is **wheel odometry**: the base model's forward
+kinematics of the wheel joints' angle increments over the period (the steerable base's also of
+its steering angles), as on the robot; the arm's is its joints' increments.
+
+Commands (``Simulation(command=...)``):
+
+* ``"velocity"``: ``(nv,)`` velocities; the arm's go to its joint velocity servos, the base's
+  through the base model's inverse kinematics to the wheel (and steer) servos;
+* ``"acceleration"``: ``(nv,)`` accelerations; arm joints get inverse-dynamics torques each
+  sub-step (MuJoCo's recursive Newton–Euler at the current state, the base taken
+  unaccelerated: its acceleration's reaction on the arm is not fed forward), clipped to their
+  limits; the base's acceleration is integrated into the wheels' velocity targets;
+* ``"torque"``: ``(n_wheels,)`` drive wheel torques [N m] (the base model's wheel order),
+  applied directly (omni force control), optionally followed by ``(n_arm,)`` arm joint
+  velocities for the arm's servos (default: the arm holds its pose).
+
+Recorded per tick (``run.signals``): ``"wheel_slip"`` (n_wheels,) [m/s] — the mean slip speed
+at each wheel's contact over the tick (rim speed ``r φ̇`` against the contact's speed along the
+wheel's driven direction from the true base twist; for steered wheels also across it);
+``"slip_distance"`` (n_wheels,) [m] — how far each contact slid in the tick; ``"lateral_slip"``
+[m/s] (differential drive) — the base's sideways speed, which its kinematics forbid;
+``"normal_forces"`` (n_wheels,) [N] and ``"friction_utilisation"`` (n_wheels,) — the wheel
+contacts' normal force and the largest ``|f_t| / (μ f_n)`` of their contacts at the tick's end;
+``"base_tilt"`` [rad] — the base's
+tilt from the vertical at the tick's end (a robot whose centre of mass leaves its wheels'
+support tips over: the wheels lift, ``normal_forces`` drop to 0);
+``"wheel_torque"`` (n_wheels,) [N m] — the drive torques the wheels' actuators produced, mean
+over the tick; ``"saturation"`` (n_actuated,) — the fraction of sub-steps each actuated joint
+(arm joints, then drive wheels, then steer joints) was at its torque limit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..checks import all_finite, checked_flag, checked_number
+from ..errors import InvalidValueError, NonFiniteError, ShapeError, WbcError
+from . import mjcf
+
+__all__ = ["MujocoPlant", "PlantStep"]
+
+
+@dataclass
+class PlantStep:
+    """What a plant reports after one control period.
+
+    Attributes:
+        q: true configuration at the period's end, ``(nq,)``.
+        v: true velocity at the period's end, ``(nv,)``.
+        v_measured: the mean velocity the encoders (wheel odometry) measured over the period.
+        signals: ``name -> float | array`` recorded in ``run.signals``.
+        q_measured: the configuration the controller is given next, when the plant measures it
+            itself (``None``: the simulator integrates ``v_measured`` from its estimate).
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    v_measured: np.ndarray
+    signals: dict = field(default_factory=dict)
+    q_measured: np.ndarray | None = None
+
+
+def _import_mujoco():
+    try:
+        import mujoco
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise WbcError("MujocoPlant needs the mujoco package: pip install 'wbc[mujoco]'") \
+            from None
+    return mujoco
+
+
+class MujocoPlant:
+    """A wbc robot simulated by MuJoCo (see the module docstring).
+
+    Args:
+        robot: the wbc robot (fixed base, or a differential, steerable, omni or mecanum base).
+        mu: wheel-floor friction coefficient (default :data:`wbc.sim.mjcf.DEFAULT_MU`).
+        masses: ``(platform, arm)`` masses [kg] (default: the paper's for ``"omni4_arm6"``,
+            else the model's; see :func:`wbc.sim.mjcf.build_mjcf`).
+        base_height: height [m] of the base frame above the floor (default per base kind).
+        settle_s: time [s] the robot settles on its wheels at rest in :meth:`reset`.
+        odometry: the controller's estimate comes from the wheel and joint encoders (default);
+            ``False``: it is the true state (as from motion capture), ``q_measured = q`` and
+            ``v_measured = v``.
+
+    Attributes:
+        model, data: MuJoCo's ``MjModel`` / ``MjData`` after :meth:`reset`.
+        mjcf: the :class:`~wbc.sim.mjcf.MjcfModel` they were built from.
+    """
+
+    def __init__(self, robot, *, mu: float = mjcf.DEFAULT_MU, masses=None,
+                 base_height: float | None = None, settle_s: float = 0.3,
+                 odometry: bool = True) -> None:
+        self._mujoco = _import_mujoco()
+        self.kind = mjcf.base_kind(robot)
+        self.settle_s = checked_number(settle_s, "settle_s [s]")
+        self.odometry = checked_flag(odometry, "odometry")
+        mu = checked_number(mu, "mu", strict=True)
+        if base_height is not None:
+            base_height = checked_number(base_height, "base_height [m]", low=None)
+        if masses is not None:
+            masses = tuple(checked_number(m, "masses [kg]", strict=True) for m in masses)
+            if len(masses) != 2:
+                raise ShapeError(f"masses must be (platform, arm) [kg], got {len(masses)} "
+                                 "numbers")
+        mjcf.build_mjcf(robot, "velocity", mu, masses=masses, base_height=base_height)  # checks
+        self.robot = robot
+        self.mu, self.masses, self.base_height = mu, masses, base_height
+        self.nq, self.nv = int(robot.nq), int(robot.nv)
+        self.nv_base = int(getattr(robot, "nv_base", 0))
+        self.base: Any = getattr(robot, "base", None) if self.kind != "fixed" else None
+        self._built: dict[str, tuple] = {}
+        self._substeps = 0
+        self._theta = self._theta_wrapped = 0.0  # base heading [rad]: unwrapped, MuJoCo's
+        self.model: Any = None  # mujoco.MjModel once reset
+        self.data: Any = None  # mujoco.MjData once reset
+        self.mjcf: Any = None  # mjcf.MjcfModel once reset
+        self.command: str | None = None
+
+    # ------------------------------------------------------------------ set-up
+    def _build(self, command: str) -> None:
+        if command not in self._built:
+            description = mjcf.build_mjcf(self.robot, command, self.mu, masses=self.masses,
+                                          base_height=self.base_height)
+            model = self._mujoco.MjModel.from_xml_string(description.xml)
+            self._built[command] = (description, model, self._mujoco.MjData(model))
+        self.mjcf, self.model, self.data = self._built[command]
+        self.command = command
+        m, desc, mj = self.model, self.mjcf, self._mujoco
+
+        def joint(name):
+            return mj.mj_name2id(m, mj.mjtObj.mjOBJ_JOINT, name)
+
+        arm = [joint(n) for n in desc.arm_joints]
+        self._arm_q = np.array([m.jnt_qposadr[j] for j in arm], dtype=int)
+        self._arm_v = np.array([m.jnt_dofadr[j] for j in arm], dtype=int)
+        wheels = [joint(n) for n in desc.wheel_joints]
+        steers = [joint(n) for n in desc.steer_joints]
+        self._wheel_q = np.array([m.jnt_qposadr[j] for j in wheels], dtype=int)
+        self._wheel_v = np.array([m.jnt_dofadr[j] for j in wheels], dtype=int)
+        self._steer_q = np.array([m.jnt_qposadr[j] for j in steers], dtype=int)
+        self._steer_v = np.array([m.jnt_dofadr[j] for j in steers], dtype=int)
+
+        def actuator(name):
+            return mj.mj_name2id(m, mj.mjtObj.mjOBJ_ACTUATOR, name)
+
+        prefix = "motor_" if command == "acceleration" else "servo_"
+        self._arm_u = np.array([actuator(prefix + n) for n in desc.arm_joints], dtype=int)
+        prefix = "motor_" if command == "torque" else "servo_"
+        self._wheel_u = np.array([actuator(prefix + n) for n in desc.wheel_joints], dtype=int)
+        self._steer_u = np.array([actuator("servo_" + n) for n in desc.steer_joints], dtype=int)
+        self._act = {int(u): int(m.actuator_actadr[u]) for u in range(m.nu)
+                     if m.actuator_actadr[u] >= 0}
+        # saturation: every actuated joint's dof and its torque limit
+        self._sat_v = np.concatenate([self._arm_v, self._wheel_v, self._steer_v])
+        limits = np.concatenate([desc.arm_torque, np.full(len(wheels) + len(steers),
+                                                          desc.wheel_torque)])
+        self._sat_limit = limits * (1.0 - 1e-6)
+        # contacts: geom -> wheel index (−1 for none)
+        body_wheel = np.full(m.nbody, -1, dtype=int)
+        for i, name in enumerate(desc.wheel_bodies):
+            body_wheel[mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, name)] = i
+        for b in range(m.nbody):  # rollers belong to their wheel
+            if body_wheel[b] < 0 and body_wheel[m.body_parentid[b]] >= 0:
+                body_wheel[b] = body_wheel[m.body_parentid[b]]
+        self._geom_wheel = body_wheel[m.geom_bodyid]
+        self._substeps = 0
+        self._force = np.zeros(6)
+
+    # ------------------------------------------------------------------ state maps
+    def _yaw(self) -> float:
+        w, x, y, z = self.data.qpos[3:7]
+        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+    def _twist(self) -> np.ndarray:
+        """True body twist ``(v_x, v_y, ω)`` of the base frame, base (yaw) axes."""
+        d = self.data
+        c, s = math.cos(self._theta_wrapped), math.sin(self._theta_wrapped)
+        vx, vy = d.qvel[0], d.qvel[1]
+        w, x, y, z = d.qpos[3:7]
+        # world z component of the body-frame angular velocity: third row of R(quat)
+        row = (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
+        omega = row[0] * d.qvel[3] + row[1] * d.qvel[4] + row[2] * d.qvel[5]
+        return np.array([c * vx + s * vy, -s * vx + c * vy, omega])
+
+    def _read(self) -> tuple[np.ndarray, np.ndarray]:
+        q, v = np.empty(self.nq), np.empty(self.nv)
+        d = self.data
+        nb = self.nv_base
+        if self.base is not None:
+            yaw = self._yaw()
+            self._theta += math.remainder(yaw - self._theta_wrapped, 2.0 * math.pi)
+            self._theta_wrapped = yaw
+            q[0], q[1], q[2] = d.qpos[0], d.qpos[1], self._theta
+            twist = self._twist()
+            v[:nb] = twist[[0, 2]] if nb == 2 else twist
+            q[3:] = d.qpos[self._arm_q]
+        else:
+            q[:] = d.qpos[self._arm_q]
+        v[nb:] = d.qvel[self._arm_v]
+        return q, v
+
+    def _wheel_rates(self, base_velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Drive (and steer) rates [rad/s] for base velocity coordinates (base model's IK)."""
+        if self.kind == "steerable":
+            steering = self.data.qpos[self._steer_q]
+            rates = self.base.inverse(base_velocity, steering)
+            return rates.drive_rates, rates.steer_rates
+        return np.asarray(self.base.jacobian, dtype=float) @ base_velocity, np.zeros(0)
+
+    # ------------------------------------------------------------------ the interface
+    def reset(self, q0, v0, dt: float, command: str = "velocity"):
+        """Build the model for ``command``, settle the robot at ``q0`` and give it ``v0``;
+        return the true ``(q, v)`` it starts from (see the module docstring)."""
+        dt = float(dt)
+        substeps = round(dt / mjcf.TIMESTEP)
+        if substeps < 1 or abs(substeps * mjcf.TIMESTEP - dt) > 1e-9 * dt:
+            raise InvalidValueError(f"MujocoPlant: dt = {dt} s must be a multiple of the physics "
+                                    f"step {mjcf.TIMESTEP} s")
+        if command == "torque" and self.base is None:
+            raise WbcError("MujocoPlant: torque commands drive wheels; this robot has none")
+        q0 = self._vector(q0, self.nq, "q0")
+        v0 = self._vector(v0, self.nv, "v0")
+        self._build(command)
+        mj, m, d = self._mujoco, self.model, self.data
+        mj.mj_resetData(m, d)
+        mj.mj_forward(m, d)
+        self._substeps, self._dt = substeps, dt
+        self._place(q0)
+        self._theta = self._theta_wrapped = float(q0[2]) if self.base is not None else 0.0
+        self._hold_q = q0[self.nq - len(self._arm_q):].copy()
+        self._hold()
+        for _ in range(round(self.settle_s / mjcf.TIMESTEP)):
+            self._settle_control()
+            mj.mj_step(m, d)
+        # back to the asked pose (the settling moved it by micrometres), keeping the height,
+        # tilt and contacts it settled to, then the asked velocity
+        self._place(q0, keep_height=True)
+        d.qvel[:] = 0.0
+        if self.base is not None:
+            nb = self.nv_base
+            twist = np.asarray(self.base.body_map, dtype=float) @ v0[:nb]
+            c, s = math.cos(q0[2]), math.sin(q0[2])
+            d.qvel[0:2] = (c * twist[0] - s * twist[1], s * twist[0] + c * twist[1])
+            d.qvel[5] = twist[2]
+            drive, steer = self._wheel_rates(v0[:nb])
+            d.qvel[self._wheel_v] = drive
+            d.qvel[self._steer_v] = steer
+        d.qvel[self._arm_v] = v0[self.nv_base:]
+        self._hold()
+        mj.mj_forward(m, d)
+        q, v = self._read()
+        self._v_base_target = v[:self.nv_base].copy()
+        return q, v
+
+    def _place(self, q0: np.ndarray, keep_height: bool = False) -> None:
+        d = self.data
+        if self.base is not None:
+            if keep_height:
+                w, x, y, z = d.qpos[3:7]
+                yaw = self._yaw()
+                # remove the settled yaw, keep roll and pitch, then turn to θ0
+                half = -0.5 * yaw
+                r = np.array([math.cos(half), 0.0, 0.0, math.sin(half)])
+                tilt = _quat_mul(r, np.array([w, x, y, z]))
+            else:
+                d.qpos[2] = self.mjcf.base_height
+                tilt = np.array([1.0, 0.0, 0.0, 0.0])
+                d.qpos[self._steer_q] = 0.0
+            half = 0.5 * q0[2]
+            d.qpos[3:7] = _quat_mul(np.array([math.cos(half), 0.0, 0.0, math.sin(half)]), tilt)
+            d.qpos[0:2] = q0[0:2]
+            d.qpos[self._arm_q] = q0[3:]
+            self._theta = self._theta_wrapped = float(q0[2])
+        else:
+            d.qpos[self._arm_q] = q0
+
+    def _hold(self) -> None:
+        """Servo references at the present joint positions (intvelocity activations)."""
+        d, m = self.data, self.model
+        for u, adr in self._act.items():
+            d.act[adr] = d.qpos[m.jnt_qposadr[m.actuator_trnid[u, 0]]]
+        d.ctrl[:] = 0.0
+
+    def _settle_control(self) -> None:
+        if self.command != "acceleration":  # servos hold at zero rates, gravity fed forward
+            self.data.qfrc_applied[self._arm_v] = self.data.qfrc_bias[self._arm_v]
+            return
+        # torque motors on the arm: hold it against gravity and drift (a stiff PD + bias)
+        d, m = self.data, self.model
+        self._mujoco.mj_forward(m, d)
+        bias = d.qfrc_bias[self._arm_v]
+        inertia = np.maximum(np.array([m.dof_M0[i] for i in self._arm_v]), 1e-3)
+        omega = 2.0 * math.pi * mjcf.SERVO_BANDWIDTH_HZ
+        error = self._hold_q - d.qpos[self._arm_q]
+        d.ctrl[self._arm_u] = bias + inertia * (omega**2 * error
+                                                - 2.0 * omega * d.qvel[self._arm_v])
+
+    def step(self, command) -> PlantStep:
+        """Advance one control period under ``command`` (see the module docstring)."""
+        if self._substeps == 0:
+            raise WbcError("MujocoPlant.step: call reset(q0, v0, dt, command) first")
+        mj, m, d = self._mujoco, self.model, self.data
+        command = np.asarray(command, dtype=float).reshape(-1)
+        if not all_finite(command):
+            raise NonFiniteError("MujocoPlant: the command contains NaN or inf")
+        nb, kind = self.nv_base, self.command
+        n_wheels = len(self._wheel_v)
+        sizes = (n_wheels, n_wheels + len(self._arm_v)) if kind == "torque" else (self.nv,)
+        if command.shape[0] not in sizes:
+            raise ShapeError(f"MujocoPlant: a {kind} command must have "
+                             f"{' or '.join(map(str, sizes))} entries, got {command.shape[0]}")
+        h = mjcf.TIMESTEP
+        arm_q0 = d.qpos[self._arm_q].copy()
+        wheel_q0 = d.qpos[self._wheel_q].copy()
+        steer_q0 = d.qpos[self._steer_q].copy()
+        saturated = np.zeros(self._sat_v.size)
+        wheel_torque = np.zeros(n_wheels)
+        slip = np.zeros(n_wheels)
+        lateral = 0.0
+        if kind != "acceleration":
+            # the arm servos' gravity and Coriolis feedforward (joint torques), held over the
+            # period
+            d.qfrc_applied[self._arm_v] = d.qfrc_bias[self._arm_v]
+        if kind == "velocity":
+            d.ctrl[self._arm_u] = command[nb:]
+            base_target = command[:nb]
+        elif kind == "acceleration":
+            base_start = self._v_base_target
+            arm_acc = command[nb:]
+            qacc = np.zeros(m.nv)
+            tau = np.zeros(m.nv)
+            limit = self.mjcf.arm_torque
+            damping = m.dof_damping[self._arm_v]
+        else:
+            d.ctrl[self._wheel_u] = command[:n_wheels]
+            d.ctrl[self._arm_u] = command[n_wheels:] if command.size > n_wheels else 0.0
+        for k in range(self._substeps):
+            if self.base is not None and kind != "torque":
+                if kind == "acceleration":
+                    base_target = base_start + command[:nb] * (k + 1) * h
+                drive, steer = self._wheel_rates(base_target)
+                d.ctrl[self._wheel_u] = drive
+                d.ctrl[self._steer_u] = steer
+            if kind == "acceleration":
+                mj.mj_step1(m, d)
+                qacc[self._arm_v] = arm_acc  # the rest of the tree taken unaccelerated
+                d.qacc[:] = qacc
+                mj.mj_rne(m, d, 1, tau)
+                d.ctrl[self._arm_u] = np.clip(tau[self._arm_v] + damping * d.qvel[self._arm_v],
+                                              -limit, limit)
+                mj.mj_step2(m, d)
+            else:
+                mj.mj_step(m, d)
+            saturated += np.abs(d.qfrc_actuator[self._sat_v]) >= self._sat_limit
+            wheel_torque += d.qfrc_actuator[self._wheel_v]
+            if self.base is not None:
+                s, lat = self._slip()
+                slip += s
+                lateral += lat
+        if not all_finite(d.qpos):
+            raise NonFiniteError("MujocoPlant: the simulation diverged (NaN in MuJoCo's state)")
+        if kind == "acceleration":
+            self._v_base_target = base_start + command[:nb] * self._dt
+        q, v = self._read()
+        dt = self._dt
+        v_meas = np.empty(self.nv)
+        v_meas[nb:] = (d.qpos[self._arm_q] - arm_q0) / dt
+        signals: dict = {"saturation": saturated / self._substeps}
+        if self.base is not None:
+            rates = (d.qpos[self._wheel_q] - wheel_q0) / dt
+            if self.kind == "steerable":
+                steering = d.qpos[self._steer_q]
+                v_meas[:nb] = self.base.forward(rates, 0.5 * (steering + steer_q0),
+                                                (steering - steer_q0) / dt)
+            else:
+                v_meas[:nb] = self.base.forward(rates)
+            if kind == "velocity":
+                self._v_base_target = command[:nb].copy()
+            signals["wheel_torque"] = wheel_torque / self._substeps
+            signals["wheel_slip"] = slip / self._substeps
+            signals["slip_distance"] = slip * h
+            if self.kind == "differential":
+                signals["lateral_slip"] = lateral / self._substeps
+            normal, utilisation = self._contacts(n_wheels)
+            signals["normal_forces"] = normal
+            signals["friction_utilisation"] = utilisation
+            w, x, y, z = d.qpos[3:7]  # the base's tilt: its z axis against the vertical
+            signals["base_tilt"] = math.acos(min(1.0, max(-1.0, 1.0 - 2.0 * (x * x + y * y))))
+        if not self.odometry:
+            return PlantStep(q, v, v.copy(), signals, q_measured=q.copy())
+        return PlantStep(q, v, v_meas, signals)
+
+    def _slip(self) -> tuple[np.ndarray, float]:
+        """Per wheel slip speed [m/s] at the contact now, and the base's lateral speed."""
+        d = self.data
+        yaw = self._yaw()
+        c, s = math.cos(yaw), math.sin(yaw)
+        vx, vy = c * d.qvel[0] + s * d.qvel[1], -s * d.qvel[0] + c * d.qvel[1]
+        w, x, y, z = d.qpos[3:7]
+        omega = ((2.0 * (x * z - w * y)) * d.qvel[3] + (2.0 * (y * z + w * x)) * d.qvel[4]
+                 + (1.0 - 2.0 * (x * x + y * y)) * d.qvel[5])
+        r = float(self.base.radius)
+        rates = d.qvel[self._wheel_v]
+        if self.kind == "steerable":
+            twist = np.array([vx, vy, omega])
+            rolling, side = self.base.no_slip_matrices(d.qpos[self._steer_q])
+            along = r * rates - rolling @ twist
+            across = self.base.offset * d.qvel[self._steer_v] - side @ twist
+            return np.hypot(along, across), 0.0
+        J = np.asarray(self.base.jacobian, dtype=float)
+        coordinates = np.array([vx, omega]) if self.nv_base == 2 else np.array([vx, vy, omega])
+        return np.abs(r * (J @ coordinates - rates)), abs(vy)
+
+    def _contacts(self, n_wheels: int) -> tuple[np.ndarray, np.ndarray]:
+        mj, m, d = self._mujoco, self.model, self.data
+        normal = np.zeros(n_wheels)
+        utilisation = np.zeros(n_wheels)
+        force = self._force
+        for i in range(d.ncon):
+            contact = d.contact[i]
+            wheel = max(self._geom_wheel[contact.geom1], self._geom_wheel[contact.geom2])
+            if wheel < 0:
+                continue
+            mj.mj_contactForce(m, d, i, force)
+            normal[wheel] += force[0]
+            if force[0] > 0:
+                share = math.hypot(force[1], force[2]) / (self.mu * force[0])
+                utilisation[wheel] = max(utilisation[wheel], share)
+        return normal, utilisation
+
+    @staticmethod
+    def _vector(value, size: int, what: str) -> np.ndarray:
+        arr = np.array(value, dtype=float).reshape(-1)
+        if arr.shape != (size,):
+            raise ShapeError(f"{what} must have {size} entries, got {arr.shape[0]}")
+        if not all_finite(arr):
+            raise NonFiniteError(f"{what} contains NaN or inf")
+        return arr
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of quaternions (w, x, y, z)."""
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
