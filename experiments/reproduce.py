@@ -12,9 +12,10 @@ about a minute, for CI; its timings are not meant to be read.
 The report: an opening summary (claims reproduced per paper, failures), one section per paper
 with its claims table and figures, the timing tables of ``wbc bench``, the peer table, the
 machine. Each paper's section also shows a strip of the robot at four instants of the study's
-main run (:data:`MAIN_RUNS`), rendered from the study's replay record by the 3-D viewer through
-headless Chromium (:func:`wbc.viz.strip.render_strip`) — on full runs, where the ``[viz]``
-extra and a Chromium are installed (otherwise the report says why there is none).
+main run (:data:`MAIN_RUNS`), rendered from the study's replay record on full runs: by the 3-D
+viewer through headless Chromium (:func:`wbc.viz.strip.render_strip`) where the ``[viz]``
+extra and a Chromium are installed, otherwise by matplotlib offline
+(:func:`wbc.viz.strip_offline.render_strip_offline`); the report says which.
 """
 
 from __future__ import annotations
@@ -150,19 +151,18 @@ def _paper_section(name: str, out: Path, step: Step) -> tuple[list[str], tuple[i
 
 def render_strips(out: Path, quick: bool) -> str:
     """Render each study's strip (``OUT/<name>/<name>_strip.png``) from its replay record;
-    returns a line for the report: what was rendered, or why not. Never raises."""
+    returns a line for the report: what was rendered and by which renderer, or why not. The
+    3-D viewer through headless Chromium where the ``[viz]`` extra and a Chromium are here
+    (or if it fails), matplotlib offline otherwise (:mod:`wbc.viz.strip_offline`: core
+    dependencies only). Never raises."""
     if quick:
         return "Robot strips: not rendered in a quick run (`wbc reproduce` renders them)."
     try:
         from wbc.errors import WbcError
-        from wbc.viz.browser import browser_unavailable_reason
         from wbc.viz.record import read_recordings
-        from wbc.viz.strip import render_strips
-    except ImportError as err:  # the [viz] extra is not installed
-        return f"Robot strips: none ({err}; pip install '.[viz]')."
-    reason = browser_unavailable_reason()
-    if reason:
-        return f"Robot strips: none ({reason})."
+        from wbc.viz.strip_offline import render_strip_offline
+    except ImportError as err:  # a broken install: the report must still be written
+        return f"Robot strips: none ({err})."
     jobs, missing = [], []
     for name, run in MAIN_RUNS.items():
         try:
@@ -170,13 +170,47 @@ def render_strips(out: Path, quick: bool) -> str:
             jobs.append((recording, out / name / f"{name}_strip.png", ""))
         except (WbcError, KeyError) as err:  # the study failed or wrote no record
             missing.append(f"{name} ({str(err)[:120]})")
-    try:
-        render_strips(jobs)
-    except Exception as err:  # the strips must not lose the report
-        return f"Robot strips: none ({type(err).__name__}: {str(err)[:200]})."
-    done = [str(path.parent.name) for _, path, _ in jobs]
-    return (f"Robot strips rendered for {', '.join(done) or 'no study'}"
+    renderer = ""
+    reason = _chromium_unavailable_reason()
+    if not reason and jobs:
+        try:
+            from wbc.viz.strip import render_strips as render_in_chromium
+
+            render_in_chromium(jobs)
+            renderer = "the 3-D viewer in headless Chromium"
+        except Exception as err:  # the offline renderer stands in
+            reason = f"Chromium failed: {type(err).__name__}: {str(err)[:160]}"
+    if not renderer:
+        renderer = f"matplotlib, offline ({reason})"
+        done = []
+        for job in jobs:
+            try:
+                render_strip_offline(job[0], job[1], title=job[2])
+                done.append(job)
+            except Exception as err:  # one bad record must not lose the other strips
+                missing.append(f"{job[1].parent.name} ({type(err).__name__}: "
+                               f"{str(err)[:120]})")
+        jobs = done
+    if not jobs:
+        return "Robot strips: none" + (f" ({'; '.join(missing)})" if missing else "") + "."
+    names = [str(path.parent.name) for _, path, _ in jobs]
+    return (f"Robot strips rendered for {', '.join(names)} by {renderer}"
             + (f"; none for {', '.join(missing)}" if missing else "") + ".")
+
+
+def _chromium_unavailable_reason() -> str | None:
+    """Why the viewer cannot photograph the strips here (``None`` when it can): the
+    ``[viz]`` extra (viser, playwright) or a Chromium is missing."""
+    try:
+        from wbc.viz import require_viser
+        from wbc.viz.browser import browser_unavailable_reason
+
+        require_viser()  # VizUnavailableError without the [viz] extra
+        return browser_unavailable_reason()
+    except Exception as err:  # whatever it is, the offline renderer stands in
+        if type(err).__name__ == "VizUnavailableError":
+            return "viser is not installed: no [viz] extra"
+        return f"{type(err).__name__}: {str(err)[:160]}"
 
 
 def _cell(value) -> str:

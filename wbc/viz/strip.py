@@ -4,7 +4,8 @@
 ``instants`` evenly spaced ticks, photographs each through headless Chromium
 (:mod:`wbc.viz.browser`, the control panel hidden, the camera fixed on the whole run) and
 writes one PNG with the time of each picture above it. ``wbc reproduce`` puts one under each
-study's section of ``REPORT.md``.
+study's section of ``REPORT.md``. Where there is no Chromium or no viser,
+:func:`wbc.viz.strip_offline.render_strip_offline` draws the same strip with matplotlib alone.
 """
 
 from __future__ import annotations
