@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -234,6 +235,7 @@ def _draw(drawing: _Drawing, recording: Recording, path: Path, instants: int,
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d import Axes3D
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
     n = len(recording)
@@ -272,7 +274,8 @@ def _draw(drawing: _Drawing, recording: Recording, path: Path, instants: int,
     width = PANEL_PX * len(ticks)
     fig = plt.figure(figsize=(width / 100, PANEL_PX / 100), dpi=100)
     for i, k in enumerate(ticks):
-        ax = fig.add_axes((i / len(ticks), 0.0, 1 / len(ticks), 0.92), projection="3d")
+        ax = cast(Axes3D, fig.add_axes((i / len(ticks), 0.0, 1 / len(ticks), 0.92),
+                                        projection="3d"))
         ax.set_proj_type("ortho")  # equal scales read as lengths anywhere in the panel
         ax.view_init(elev=ELEVATION_DEG, azim=AZIMUTH_DEG)
         ax.set_xlim(low[0], high[0])
@@ -317,13 +320,16 @@ def _draw(drawing: _Drawing, recording: Recording, path: Path, instants: int,
                 ax.plot(*ring.T, color=_rgb(geometry.WHEEL_COLOUR), lw=1.6, zorder=2.2)
         ax.add_collection3d(Line3DCollection(drawing.segments(), colors=[_rgb(LINK_COLOUR)],
                                              linewidths=5.0, capstyle="round", zorder=3))
-        ax.scatter(*drawing.joints().T, s=14, color=_rgb(JOINT_COLOUR), depthshade=False,
-                   zorder=4)
+        joints = drawing.joints()
+        ax.scatter(joints[:, 0], joints[:, 1], joints[:, 2], s=14, color=_rgb(JOINT_COLOUR),
+                   depthshade=False, zorder=4)
         if recording.target is not None:
-            ax.scatter(*recording.target[k], s=30, color=_rgb(TARGET_COLOUR),
+            tx, ty, tz = recording.target[k]
+            ax.scatter(tx, ty, tz, s=30, color=_rgb(TARGET_COLOUR),
                        depthshade=False, edgecolors="black", linewidths=0.5, zorder=5)
         if ee is not None:
-            ax.scatter(*ee[k], s=18, color=_rgb(STATUS_COLOURS[int(recording.status[k])]),
+            ex, ey, ez = ee[k]
+            ax.scatter(ex, ey, ez, s=18, color=_rgb(STATUS_COLOURS[int(recording.status[k])]),
                        depthshade=False, zorder=5)
         fig.text((i + 0.5) / len(ticks), 0.97, f"t = {recording.t[k]:.1f} s", ha="center",
                  va="top", fontsize=11)
