@@ -56,3 +56,40 @@ def user_robots_and_stack(robot_files, stack_spec: str | None) -> tuple[list | N
                            lambda path=path: load_robot_file(path)))
     build = load_stack(stack_spec) if stack_spec else None
     return robots, build
+
+
+def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--workers N``, ``--scheduler ADDRESS``, ``--time-limit S`` and ``--case KEY`` of the
+    campaigns that run on Dask (:mod:`wbc.experiments.campaigns.cluster`)."""
+    from wbc.experiments.campaigns.cluster import INSTALL_HINT, TIME_LIMIT_S
+
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="N",
+                       help="run on a local Dask cluster of N worker processes (default: in "
+                            f"this process; needs {INSTALL_HINT})")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run on the Dask cluster of this scheduler, e.g. tcp://host:8786 "
+                            "(its workers need wbc, and any --robot/--stack file at the same "
+                            "path)")
+    parser.add_argument("--time-limit", type=float, default=TIME_LIMIT_S, metavar="S",
+                        help="on a cluster, a case running longer is stopped and recorded as "
+                             f"a defect [s] (default {TIME_LIMIT_S:g})")
+    parser.add_argument("--case", default=None, metavar="KEY",
+                        help="run only the case KEY of this campaign, in this process (the "
+                             "reproduction line of a defect gives it)")
+
+
+def cluster_options(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict:
+    """The checked options of :func:`add_cluster_arguments` as keyword arguments of the
+    campaigns: ``workers``, ``scheduler``, ``time_limit``, ``only``; a usage error for
+    ``--workers`` below 1 or a ``--time-limit`` not above 0."""
+    import math
+
+    if args.workers is not None and args.workers < 1:
+        parser.error("--workers must be >= 1")
+    if not (math.isfinite(args.time_limit) and args.time_limit > 0):
+        parser.error("--time-limit must be > 0")
+    if args.case is not None and (args.workers is not None or args.scheduler is not None):
+        parser.error("--case runs one case in this process: drop --workers/--scheduler")
+    return {"workers": args.workers, "scheduler": args.scheduler,
+            "time_limit": args.time_limit, "only": args.case}

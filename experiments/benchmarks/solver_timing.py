@@ -917,7 +917,13 @@ def main(argv: list[str] | None = None) -> int:
                              "of compiled C (wbc.jit; built once per machine, then cached)")
     parser.add_argument("--out", type=Path, default=Path("results"),
                         help="output folder (default ./results)")
+    # accepted only to be refused with the reason (wbc fuzz and wbc audit take them)
+    parser.add_argument("--workers", default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--scheduler", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.workers is not None or args.scheduler is not None:
+        parser.error("wbc bench runs in one process: a timing needs an idle core, not a "
+                     "cluster (--workers and --scheduler are for wbc fuzz and wbc audit)")
     robots: list = list(args.robots or ([] if args.robot else wbc.robots.names()))
     unknown = sorted(set(robots) - set(wbc.robots.names()))
     if unknown:

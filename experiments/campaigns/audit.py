@@ -34,15 +34,23 @@ tolerance only (the workspace clips ``x`` into the variable bounds, so they are 
 Output (``--out DIR``): ``DIR/audit.json`` with ``"runs"``, ``"ticks"``, ``"violations"``,
 ``"nans"``, ``"failed"``, ``"partial"``, ``"fallback_missing"``, the same per level and
 backend under ``"by_level"``, ``"by_backend"`` and ``"cells"`` (level × backend × robot), the
-worst excursions in ``"worst"`` and ``"parameters"``; ``DIR/audit.md`` as a table. Exit code:
-0 when no run has a violation, a NaN or a failed tick without fallback (:data:`FINDINGS`), 1
-otherwise (2: a usage error); failed and partial ticks with their fallback are not findings.
+worst excursions in ``"worst"``, ``"parameters"`` and ``"cluster"`` (where it ran: see
+:mod:`~wbc.experiments.campaigns.cluster`); ``DIR/audit.md`` as a table. Each cell (level ×
+backend × robot, seeded from ``--seed`` and its place) is one case of the cluster: the same
+JSON in this process, on ``--workers N`` or ``--scheduler ADDRESS``; a cell that raises, hangs
+past ``--time-limit`` or kills its worker is listed under ``"defects"`` (absent when there is
+none) with its seed and a command rerunning it alone (``--case KEY``); an interrupted audit
+leaves ``DIR/audit.partial.json``, which the same command resumes. Exit code: 0 when no run
+has a violation, a NaN or a failed tick without fallback (:data:`FINDINGS`) and no cell is a
+defect, 1 otherwise (2: a usage error); failed and partial ticks with their fallback are not
+findings.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 
@@ -60,7 +68,13 @@ from wbc.tasks import (
     VelocityLimit,
 )
 
-from ..arguments import constructible_backends, user_robots_and_stack
+from ..arguments import (
+    add_cluster_arguments,
+    cluster_options,
+    constructible_backends,
+    user_robots_and_stack,
+)
+from . import cluster
 
 DT = 0.01  # control period [s]
 TOL = 1e-9  # allowed excursion out of a limit (absolute)
@@ -158,51 +172,119 @@ def audit_run(robot, controller, level: str, q0, v0, target, ticks: int) -> dict
 
 
 def audit(runs: int, backends: list[str], levels: list[str], ticks: int = 30, seed: int = 0,
-          seconds: float | None = None, robots: list | None = None, build=None) -> dict:
+          seconds: float | None = None, robots: list | None = None, build=None, *,
+          workers: int | None = None, scheduler: str | None = None, out: Path | None = None,
+          time_limit: float = cluster.TIME_LIMIT_S, only: str | None = None,
+          progress: bool = True, robot_files=()) -> dict:
     """About ``runs`` runs spread over robots × backends × levels; stops early after
     ``seconds`` [s]. ``robots``: ``(name, load)`` pairs (default: the catalogue); ``build``:
     a stack of the user's (``build(robot) -> wbc.Stack``, see
     :mod:`wbc.experiments.benchmarks.user_inputs`) audited instead of the built-in
-    controllers, at its own level (its command's kind), whatever ``levels`` says. Returns the
-    JSON-ready result."""
+    controllers, at its own level (its command's kind), whatever ``levels`` says.
+
+    Where: in this process, or on Dask — ``workers`` local processes or the cluster at
+    ``scheduler`` — one cell (level × backend × robot, :func:`plan`) per case of
+    :mod:`~wbc.experiments.campaigns.cluster` (the same result wherever they run); ``out``: the
+    folder of ``audit.partial.json`` (finished cells, resumed by a rerun); ``time_limit``: of
+    one cell on a cluster [s]; ``only``: the key of one cell to run alone (its reproduction).
+    A cell that raises, hangs or kills its workers is listed under ``"defects"`` with its seed
+    and a reproduction command (``robot_files``: the ``--robot`` files, for that command).
+    Returns the JSON-ready result."""
     if robots is None:
         robots = [(name, lambda name=name: wbc.robots.load(name)) for name in
                   wbc.robots.names()]
     if build is not None:
         levels = [user_level(build, robots[0][1]())]
     names = [name for name, _ in robots]
-    per_cell = max(1, -(-runs // (len(names) * len(backends) * len(levels))))  # rounded up
-    cells: dict[str, dict] = {}
+    cells_plan = plan(runs, backends, levels, names, seed, ticks)
+    if only is not None:
+        cells_plan = [cell for cell in cells_plan if cell["key"] == only]
+        if not cells_plan:
+            raise wbc.UnknownNameError(f"no case {only!r} in this audit (keys look like "
+                                       f"'velocity/daqp/{names[0]}')")
+    identity = {"runs": runs, "backends": list(backends), "levels": list(levels),
+                "ticks": ticks, "seed": seed, "robots": names,
+                "stack": getattr(build, "spec", None), "robot_files": list(robot_files)}
     start = time.perf_counter()
-    for level in levels:
-        for backend in backends:
-            for r, (name, load) in enumerate(robots):
-                robot = load()
-                if build is not None:
-                    controller = wbc.Controller(robot, build(robot), dt=DT, backend=backend)
-                elif level == "velocity":
-                    controller = velocity_controller(robot, backend)
-                else:
-                    controller = acceleration_controller(robot, backend)
-                label = f"{backend} (fused)" if getattr(controller, "fused", False) else backend
-                cell = dict.fromkeys(COUNTS, 0) | {"worst_q": -np.inf, "worst_v": -np.inf}
-                rng = np.random.default_rng([seed, LEVELS.index(level), r,
-                                             _backend_index(backend)])
-                for k in range(per_cell):
-                    q0, v0 = random_start(rng, robot, level)
-                    target = random_target(rng, robot, reachable=bool(k % 2 == 0))
-                    counts = audit_run(robot, controller, level, q0, v0, target, ticks)
-                    for key in COUNTS:
-                        cell[key] += counts[key]
-                    cell["worst_q"] = max(cell["worst_q"], counts["worst_q"])
-                    cell["worst_v"] = max(cell["worst_v"], counts["worst_v"])
-                    if seconds is not None and time.perf_counter() - start > seconds:
-                        break
-                cells[f"{level}/{label}/{name}"] = cell
-    return summarise(cells, {"seed": seed, "ticks_per_run": ticks, "dt": DT, "tol": TOL,
-                             "backends": backends, "levels": levels, "robots": names,
-                             "stack": getattr(build, "spec", None),
-                             "wall_s": round(time.perf_counter() - start, 1)})
+    deadline = None if seconds is None else time.time() + seconds
+    context = cluster.context(robots, build, identity, on_cluster=workers is not None
+                              or scheduler is not None)
+    # a case rerun alone (--case) leaves the campaign's partial file alone
+    finished = cluster.run_cases(run_cell, cells_plan, context, name="audit",
+                                 out=None if only else out, identity=identity,
+                                 workers=workers, scheduler=scheduler, time_limit=time_limit,
+                                 deadline=deadline, progress=progress)
+    cells = {result["key"]: result["cell"] for result in finished.results
+             if result is not None}
+    failures = finished.failures
+    parameters = {"seed": seed, "ticks_per_run": ticks, "dt": DT, "tol": TOL,
+                  "backends": backends, "levels": levels, "robots": names,
+                  "stack": getattr(build, "spec", None),
+                  "wall_s": round(time.perf_counter() - start, 1)}
+    result = summarise(cells, parameters) if cells else {
+        **dict.fromkeys(COUNTS, 0), "by_level": {}, "by_backend": {}, "cells": {},
+        "worst": {}, "parameters": parameters}
+    if failures:  # only then: the key is absent from a clean audit's JSON, as before
+        result["defects"] = [{"case": f["key"], "case_seed": f["seed"], "seed": seed,
+                              "defect": f["failure"], "message": f["message"],
+                              "attempts": f["attempts"],
+                              "reproduce": reproduce_command(identity, f["key"])}
+                             for f in failures]
+    result["cluster"] = finished.cluster
+    return result
+
+
+def plan(runs: int, backends: list[str], levels: list[str], robots: list[str], seed: int,
+         ticks: int) -> list[dict]:
+    """The cells of an audit in order (level, backend, robot): each a JSON-ready dict with its
+    ``"key"`` (``"LEVEL/BACKEND/ROBOT"``), the ``"seed"`` of its runs (``[seed, level,
+    robot, backend]`` indices) and its number of runs."""
+    per_cell = max(1, -(-runs // (len(robots) * len(backends) * len(levels))))  # rounded up
+    return [{"key": f"{level}/{backend}/{name}",
+             "seed": [seed, LEVELS.index(level), r, _backend_index(backend)],
+             "level": level, "backend": backend, "robot": r, "runs": per_cell, "ticks": ticks}
+            for level in levels for backend in backends for r, name in enumerate(robots)]
+
+
+def run_cell(context: dict, cell: dict, deadline: float | None = None) -> dict:
+    """Run one cell of :func:`plan` (on whichever process): ``{"key", "cell", "stopped"}``,
+    the key with the backend's label (``"daqp (fused)"`` when the controller took the fused
+    tick); ``"stopped"`` when ``time.time()`` passed ``deadline`` before its last run."""
+    robots, build = cluster.user_inputs(context)
+    level, backend = cell["level"], cell["backend"]
+    name, load = robots[cell["robot"]]
+    robot = load()
+    if build is not None:
+        controller = wbc.Controller(robot, build(robot), dt=DT, backend=backend)
+    elif level == "velocity":
+        controller = velocity_controller(robot, backend)
+    else:
+        controller = acceleration_controller(robot, backend)
+    label = f"{backend} (fused)" if getattr(controller, "fused", False) else backend
+    counts_total = dict.fromkeys(COUNTS, 0) | {"worst_q": -np.inf, "worst_v": -np.inf}
+    rng = np.random.default_rng(cell["seed"])
+    stopped = False
+    for k in range(cell["runs"]):
+        q0, v0 = random_start(rng, robot, level)
+        target = random_target(rng, robot, reachable=bool(k % 2 == 0))
+        counts = audit_run(robot, controller, level, q0, v0, target, cell["ticks"])
+        for key in COUNTS:
+            counts_total[key] += counts[key]
+        counts_total["worst_q"] = max(counts_total["worst_q"], counts["worst_q"])
+        counts_total["worst_v"] = max(counts_total["worst_v"], counts["worst_v"])
+        if deadline is not None and time.time() > deadline and k + 1 < cell["runs"]:
+            stopped = True
+            break
+    return {"key": f"{level}/{label}/{name}", "cell": counts_total, "stopped": stopped}
+
+
+def reproduce_command(identity: dict, key: str) -> str:
+    """The one-line command that reruns the cell ``key`` of an audit in one process."""
+    return cluster.reproduction("wbc audit", {
+        "--runs": identity["runs"], "--backends": ",".join(identity["backends"]),
+        "--levels": ",".join(identity["levels"]), "--ticks": identity["ticks"],
+        "--seed": identity["seed"], "--robot": identity.get("robot_files") or None,
+        "--stack": identity["stack"], "--out": "audit_case"}, key)
 
 
 def user_level(build, robot) -> str:
@@ -248,6 +330,9 @@ def markdown(result: dict) -> str:
              "|---" * (len(COUNTS) + 1) + "|"]
     for key, cell in result["cells"].items():
         lines.append(f"| {key} | " + " | ".join(str(cell[c]) for c in COUNTS) + " |")
+    for d in result.get("defects", []):  # cells that raised, hung or killed their workers
+        lines.append(f"\n- cell `{d['case']}` (seed {d['case_seed']}, {d['attempts']} "
+                     f"attempt(s)): {d['defect']} — {d['message']}; rerun: `{d['reproduce']}`")
     return "\n".join(lines) + "\n"
 
 
@@ -272,7 +357,9 @@ def main(argv=None) -> int:
                         help="audit a stack of your own (function(robot) -> wbc.Stack with a "
                              "frame task named 'ee') at its command's level")
     parser.add_argument("--out", type=Path, default=Path("results"))
+    add_cluster_arguments(parser)
     args = parser.parse_args(argv)
+    where = cluster_options(parser, args)
     if args.runs < 1 or args.ticks < 1:
         parser.error("--runs and --ticks must be >= 1")
     if args.seconds is not None and not args.seconds > 0:
@@ -282,11 +369,12 @@ def main(argv=None) -> int:
     for level in levels:
         if level not in LEVELS:
             parser.error(f"--levels: unknown level {level!r}; levels: {', '.join(LEVELS)}")
-    robots, build = user_robots_and_stack(args.robot, args.stack)
+    robot_files = [os.path.abspath(path) for path in args.robot]  # workers: any directory
+    robots, build = user_robots_and_stack(robot_files, args.stack)
     result = audit(args.runs, backends, levels, args.ticks, args.seed, args.seconds, robots,
-                   build)
+                   build, out=args.out, robot_files=robot_files, **where)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "audit.json").write_text(json.dumps(result, indent=1))
     (args.out / "audit.md").write_text(markdown(result))
     print(markdown(result))
-    return 1 if any(result[key] for key in FINDINGS) else 0  # a CI gate
+    return 1 if any(result[key] for key in FINDINGS) or result.get("defects") else 0  # CI gate

@@ -42,16 +42,29 @@ Case families (drawn in proportion, all seeded from ``--seed``; ``--families`` p
   other exception is a defect* — the calls pass their arguments by keyword, in the right
   number, so not even a ``TypeError`` is excused. Its outcomes are the row ``"constructors"``.
 
+Where (:mod:`~wbc.experiments.campaigns.cluster`): in this process (the default), on
+``--workers N`` local processes or on the Dask cluster of ``--scheduler ADDRESS``; the
+campaign is cut into pieces (:func:`plan`: a stack structure's ticks, a robot's ticks, a slice
+of the constructor calls), each seeded from ``--seed`` and its place, so the JSON is the same
+wherever they ran (the wall time and ``"cluster"`` aside). A piece that raises outside the
+classifier, hangs past ``--time-limit`` (on a cluster) or kills its worker is a defect
+(``"raised"``, ``"hang"``, ``"killed_worker"``) with its key, seed and a one-line command that
+reruns it alone (``--case KEY``); an interrupted campaign leaves ``DIR/fuzz.partial.json``,
+which the same command resumes.
+
 Outputs (``--out DIR``): ``DIR/fuzz.json`` with ``"cases"``, ``"outcomes"`` (counts per class
 and backend), ``"defects"`` (each with a reproducer: family, backend, seeds, injected defect,
-message) and ``"parameters"``; ``DIR/fuzz.md`` the same as a table. Exit code: 0 without
-defects, 1 with any (2: a usage error).
+message), ``"parameters"`` and ``"cluster"`` (``"workers"``, ``"scheduler"``, the
+``"machine"`` of every worker, ``"batch_cases"``, the ``"attempts"`` of pieces run more than
+once); ``DIR/fuzz.md`` the same as a table. Exit code: 0 without defects, 1 with any (2: a
+usage error).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 import warnings
 from collections.abc import Callable
@@ -78,7 +91,13 @@ from wbc.tasks import (
 )
 from wbc.tasks.manipulability import ManipulabilityAccelerationTask
 
-from ..arguments import constructible_backends, user_robots_and_stack
+from ..arguments import (
+    add_cluster_arguments,
+    cluster_options,
+    constructible_backends,
+    user_robots_and_stack,
+)
+from . import cluster
 
 HANG_S = 1.0  # a tick longer than this is a hang [s]
 CONSTRUCTOR_MIN = 64  # constructor calls per campaign at least (one per constructor, 57)
@@ -209,26 +228,32 @@ def stack_cases(backend: str, seed: int, structures: int, draws: int, fused: boo
     ``fused`` (daqp only) each stack runs on a :class:`~wbc.fused.FusedWorkspace` — the fused
     cascade on CasADi's virtual machine (the same function the C build compiles, without a
     compilation per random stack) — labelled ``"daqp (fused)"``."""
-    label = f"{backend} (fused)" if fused else backend
     for s in range(structures):
-        rng = np.random.default_rng([seed, s])
-        structure = random_structure(rng)
-        stack = build_stack(structure)
-        ws = (FusedWorkspace(stack.compile(), compile=False) if fused
-              else stack.workspace(backend))
-        for d in range(draws * TICKS):
-            defect = str(rng.choice(DEFECTS))
-            values = random_values(rng, structure, defect)
+        yield from structure_cases(backend, seed, s, draws, fused)
 
-            def tick(values=values, ws=ws):
-                ws.set(**values)
-                # CasADi's virtual machine prints a failed daqp node's inputs through Python
-                with silenced():
-                    return ws.solve(), ws.variable_bounds()
 
-            case = {"family": "stack", "backend": label, "seed": seed, "structure": s,
-                    "tick": d, "injected": defect, "structure_spec": structure}
-            yield (case, *classify(tick))
+def structure_cases(backend: str, seed: int, s: int, draws: int, fused: bool = False):
+    """Yield ``(case, class, defect, message)`` of the stack structure ``s`` (drawn from the
+    seed ``[seed, s]``): ``draws * TICKS`` ticks on one workspace (see :func:`stack_cases`)."""
+    label = f"{backend} (fused)" if fused else backend
+    rng = np.random.default_rng([seed, s])
+    structure = random_structure(rng)
+    stack = build_stack(structure)
+    ws = (FusedWorkspace(stack.compile(), compile=False) if fused
+          else stack.workspace(backend))
+    for d in range(draws * TICKS):
+        defect = str(rng.choice(DEFECTS))
+        values = random_values(rng, structure, defect)
+
+        def tick(values=values, ws=ws):
+            ws.set(**values)
+            # CasADi's virtual machine prints a failed daqp node's inputs through Python
+            with silenced():
+                return ws.solve(), ws.variable_bounds()
+
+        case = {"family": "stack", "backend": label, "seed": seed, "structure": s,
+                "tick": d, "injected": defect, "structure_spec": structure}
+        yield (case, *classify(tick))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -293,22 +318,30 @@ def robot_cases(backend: str, seed: int, ticks: int, robots: list | None = None,
     ``(name, load)`` pairs (default :func:`catalogue_robots`); ``build(robot) -> Stack``: the
     user's stack instead of the default controller's."""
     for r, (name, load) in enumerate(robots or catalogue_robots()):
-        robot = load()
-        ctrl = robot_controller(robot, backend, build=build)
-        label = f"{backend} (fused)" if getattr(ctrl, "fused", False) else backend
-        rng = np.random.default_rng([seed, 1000 + r])
-        for k in range(ticks):
-            defect = str(rng.choice(STATE_DEFECTS))
-            q, v, refs = random_state(rng, robot, defect)
+        yield from one_robot_cases(backend, seed, ticks, r, name, load, build)
 
-            def tick(q=q, v=v, refs=refs, ctrl=ctrl):
-                command = ctrl.step(q, v, **refs)
-                solution = ctrl.last_solution
-                return _Commanded(command, solution), ctrl.workspace.variable_bounds()
 
-            case = {"family": "robot", "backend": label, "seed": seed, "robot": name,
-                    "tick": k, "injected": defect}
-            yield (case, *classify(tick))
+def one_robot_cases(backend: str, seed: int, ticks: int, r: int, name: str, load,
+                    build=None):
+    """Yield ``(case, class, defect, message)`` of the robot family on the ``r``-th robot
+    (``name``, ``load()``; drawn from the seed ``[seed, 1000 + r]``): ``ticks`` ticks of one
+    controller (see :func:`robot_cases`)."""
+    robot = load()
+    ctrl = robot_controller(robot, backend, build=build)
+    label = f"{backend} (fused)" if getattr(ctrl, "fused", False) else backend
+    rng = np.random.default_rng([seed, 1000 + r])
+    for k in range(ticks):
+        defect = str(rng.choice(STATE_DEFECTS))
+        q, v, refs = random_state(rng, robot, defect)
+
+        def tick(q=q, v=v, refs=refs, ctrl=ctrl):
+            command = ctrl.step(q, v, **refs)
+            solution = ctrl.last_solution
+            return _Commanded(command, solution), ctrl.workspace.variable_bounds()
+
+        case = {"family": "robot", "backend": label, "seed": seed, "robot": name,
+                "tick": k, "injected": defect}
+        yield (case, *classify(tick))
 
 
 class _Commanded:
@@ -613,11 +646,14 @@ def constructor_specs() -> dict:
     }
 
 
-def constructor_cases(seed: int, count: int):
+def constructor_cases(seed: int, count: int, start: int = 0, specs: dict | None = None):
     """Yield ``(case, class, defect, message)`` of the constructor family: ``count`` calls,
     round-robin over :func:`constructor_specs`, each with one or two arguments replaced by a
-    bad value (one call in ten keeps its valid arguments)."""
-    specs = constructor_specs()
+    bad value (one call in ten keeps its valid arguments), all drawn from the seed
+    ``[seed, 2000]``. ``start``: yield the calls from the ``start``-th on only (the arguments
+    of the earlier ones are still drawn, not called: the same calls as in one stream);
+    ``specs``: :func:`constructor_specs` if built already."""
+    specs = constructor_specs() if specs is None else specs
     names = list(specs)
     rng = np.random.default_rng([seed, 2000])
     for k in range(count):
@@ -631,6 +667,8 @@ def constructor_cases(seed: int, count: int):
                 kind = str(rng.choice(BAD_VALUES))
                 kwargs[str(argument)] = bad_value(rng, kwargs[str(argument)], kind)
                 injected[str(argument)] = kind
+        if k < start:
+            continue
         outcome, defect, message = classify_call(call, kwargs)
         case = {"family": "constructors", "backend": "constructors", "seed": seed,
                 "constructor": name, "call": k,
@@ -656,12 +694,23 @@ def classify_call(call, kwargs: dict) -> tuple[str, str | None, str]:
 
 
 def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | None = None,
-             robots: list | None = None, build=None, families=FAMILIES):
+             robots: list | None = None, build=None, families=FAMILIES, *,
+             workers: int | None = None, scheduler: str | None = None,
+             out: Path | None = None, time_limit: float = cluster.TIME_LIMIT_S,
+             only: str | None = None, progress: bool = True, robot_files=()):
     """Run about ``cases`` cases: a twentieth of them (at least :data:`CONSTRUCTOR_MIN`, one
     per constructor) constructor calls, the rest spread over ``backends`` (a sixth of them robot
     ticks); stops early after ``seconds`` [s]. ``robots`` and ``build``: the robot family's
     robots and stack (see :func:`robot_cases`). ``families``: the case families run (a subset
     of :data:`FAMILIES`; ``("constructors",)`` alone spends every case on constructor calls).
+
+    Where: in this process, or on Dask — ``workers`` local processes or the cluster at
+    ``scheduler`` — in the pieces of :func:`plan` (:mod:`~wbc.experiments.campaigns.cluster`:
+    the same result wherever they run); ``out``: the folder of ``fuzz.partial.json`` (finished
+    pieces, resumed by a rerun); ``time_limit``: of one piece on a cluster [s]; ``only``: the
+    key of one piece to run alone (its reproduction). A piece that raises, hangs or kills its
+    workers is a defect with its seed and a reproduction command (``robot_files``: the
+    ``--robot`` files the robots came from, for that command).
     Returns the JSON-ready result."""
     families = tuple(families)
     unknown = sorted(set(families) - set(FAMILIES))
@@ -669,6 +718,71 @@ def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | No
         raise wbc.InvalidValueError(f"families must be a non-empty subset of {list(FAMILIES)}, "
                                     f"got {list(families)}")
     robots = robots or catalogue_robots()
+    pieces = plan(cases, backends, seed, families, [name for name, _ in robots])
+    if only is not None:
+        pieces = [piece for piece in pieces if piece["key"] == only]
+        if not pieces:
+            raise wbc.UnknownNameError(f"no case {only!r} in this campaign (keys look like "
+                                       "'stack/daqp/3', 'robot/daqp/tiago_panda', "
+                                       "'constructors/0')")
+    identity = {"cases": cases, "backends": list(backends), "seed": seed,
+                "families": list(families), "robots": [name for name, _ in robots],
+                "stack": getattr(build, "spec", None), "robot_files": list(robot_files)}
+    start = time.perf_counter()
+    deadline = None if seconds is None else time.time() + seconds
+    context = cluster.context(robots, build, identity, on_cluster=workers is not None
+                              or scheduler is not None)
+    # a case rerun alone (--case) leaves the campaign's partial file alone
+    finished = cluster.run_cases(run_piece, pieces, context, name="fuzz",
+                                 out=None if only else out, identity=identity,
+                                 workers=workers, scheduler=scheduler, time_limit=time_limit,
+                                 deadline=deadline, progress=progress)
+    failures = {failure["index"]: failure for failure in finished.failures}
+    outcomes: dict[str, dict[str, int]] = {}
+    defects: list[dict] = []
+    families_count: dict[str, int] = {}
+    total = 0
+    for index, (piece, result) in enumerate(zip(pieces, finished.results, strict=True)):
+        if index in failures:
+            defects.append(_failure_defect(piece, failures[index], identity))
+        if result is None:
+            continue
+        for label, counts in result["outcomes"].items():
+            mine = outcomes.setdefault(label, {"error": 0, "failure": 0, "success": 0,
+                                               "defect": 0})
+            for outcome, n in counts.items():
+                mine[outcome] += n
+        for family, n in result["families"].items():
+            families_count[family] = families_count.get(family, 0) + n
+        total += result["cases"]
+        defects.extend(result["defects"])
+    return {"cases": total, "families": families_count, "outcomes": outcomes,
+            "defects": defects,
+            "parameters": {"seed": seed, "backends": backends, "families": list(families),
+                           "hang_s": HANG_S,
+                           "robots": [name for name, _ in robots],
+                           "stack": getattr(build, "spec", None),
+                           "bound_tol": BOUND_TOL, "ticks_per_draw": TICKS,
+                           "wall_s": round(time.perf_counter() - start, 1)},
+            "cluster": finished.cluster}
+
+
+CONSTRUCTOR_PIECE = 128  # constructor calls per piece of a campaign (see plan)
+
+
+def plan(cases: int, backends: list[str], seed: int, families=FAMILIES,
+         robots: list[str] | None = None) -> list[dict]:
+    """The pieces of a campaign, in the order their cases are counted — each a JSON-ready dict
+    with a ``"key"`` and the ``"seed"`` its random generator is drawn from:
+
+    * ``constructors/K``: the constructor calls ``K ..`` (at most :data:`CONSTRUCTOR_PIECE`)
+      of the one stream ``[seed, 2000]``;
+    * per backend, ``stack/BACKEND/S``: the ticks of stack structure ``S`` (seed ``[seed, S]``),
+      ``robot/BACKEND/NAME``: a robot's ticks (seed ``[seed, 1000 + r]``), and on daqp
+      ``fused/daqp/S``: structure ``S`` on the fused cascade.
+
+    ``robots``: the robot family's robot names (default: the catalogue)."""
+    robots = list(wbc.robots.names()) if robots is None else robots
     solved = [f for f in ("stack", "robot") if f in families]  # the families on a backend
     constructor_calls = 0
     if "constructors" in families:
@@ -680,40 +794,79 @@ def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | No
     stack_ticks = per_backend - robot_ticks * len(robots)
     draws = 2
     structures = max(1, -(-stack_ticks // (draws * TICKS)))
+    pieces: list[dict] = [
+        {"key": f"constructors/{k}", "seed": [seed, 2000], "family": "constructors",
+         "backend": "constructors", "start": k,
+         "stop": min(constructor_calls, k + CONSTRUCTOR_PIECE)}
+        for k in range(0, constructor_calls, CONSTRUCTOR_PIECE)]
+    for backend in backends if solved else ():
+        if "stack" in families:
+            pieces += [{"key": f"stack/{backend}/{s}", "seed": [seed, s], "family": "stack",
+                        "backend": backend, "structure": s, "draws": draws, "fused": False}
+                       for s in range(structures)]
+        if "robot" in families:
+            pieces += [{"key": f"robot/{backend}/{name}", "seed": [seed, 1000 + r],
+                        "family": "robot", "backend": backend, "robot": r, "ticks": robot_ticks}
+                       for r, name in enumerate(robots)]
+        if backend == "daqp" and "stack" in families:  # the fused cascade too
+            pieces += [{"key": f"fused/{backend}/{s}", "seed": [seed, s], "family": "stack",
+                        "backend": f"{backend} (fused)", "structure": s, "draws": draws,
+                        "fused": True} for s in range(structures)]
+    return pieces
 
-    def cases_in_order():
-        if constructor_calls:  # constructors do not depend on the backend: once
-            yield from constructor_cases(seed, constructor_calls)
-        for backend in backends if solved else ():
-            if "stack" in families:
-                yield from stack_cases(backend, seed, structures, draws)
-            if "robot" in families:
-                yield from robot_cases(backend, seed, robot_ticks, robots, build)
-            if backend == "daqp" and "stack" in families:  # the fused cascade too
-                yield from stack_cases(backend, seed, structures, draws, fused=True)
 
+def run_piece(context: dict, piece: dict, deadline: float | None = None) -> dict:
+    """Run one piece of :func:`plan` (on whichever process): its counts per backend label and
+    class, its cases per family, its defects; ``"stopped"`` when ``time.time()`` passed
+    ``deadline`` before its last case."""
+    robots, build = cluster.user_inputs(context)
+    seed = piece["seed"][0]
+    if piece["family"] == "constructors":
+        specs = cluster.cached(context, "specs", constructor_specs)
+        cases = constructor_cases(seed, piece["stop"], piece["start"], specs)
+    elif piece["family"] == "stack":
+        backend = piece["backend"].removesuffix(" (fused)")
+        cases = structure_cases(backend, seed, piece["structure"], piece["draws"],
+                                piece["fused"])
+    else:
+        name, load = robots[piece["robot"]]
+        cases = one_robot_cases(piece["backend"], seed, piece["ticks"], piece["robot"], name,
+                                load, build)
     outcomes: dict[str, dict[str, int]] = {}
+    families: dict[str, int] = {}
     defects: list[dict] = []
-    families_count: dict[str, int] = {}
-    total, start = 0, time.perf_counter()
-    for case, outcome, defect, message in cases_in_order():
+    total, stopped = 0, False
+    for case, outcome, defect, message in cases:
         counts = outcomes.setdefault(case["backend"], {"error": 0, "failure": 0,
                                                        "success": 0, "defect": 0})
         counts[outcome] += 1
-        families_count[case["family"]] = families_count.get(case["family"], 0) + 1
+        families[case["family"]] = families.get(case["family"], 0) + 1
         total += 1
         if defect:
             defects.append({**case, "defect": defect, "message": message[:500]})
-        if seconds is not None and time.perf_counter() - start > seconds:
+        if deadline is not None and time.time() > deadline:
+            stopped = True
             break
-    return {"cases": total, "families": families_count, "outcomes": outcomes,
-            "defects": defects,
-            "parameters": {"seed": seed, "backends": backends, "families": list(families),
-                           "hang_s": HANG_S,
-                           "robots": [name for name, _ in robots],
-                           "stack": getattr(build, "spec", None),
-                           "bound_tol": BOUND_TOL, "ticks_per_draw": TICKS,
-                           "wall_s": round(time.perf_counter() - start, 1)}}
+    return {"cases": total, "outcomes": outcomes, "families": families, "defects": defects,
+            "stopped": stopped}
+
+
+def reproduce_command(identity: dict, key: str) -> str:
+    """The one-line command that reruns the piece ``key`` of a campaign in one process."""
+    return cluster.reproduction("wbc fuzz", {
+        "--cases": identity["cases"], "--backends": ",".join(identity["backends"]),
+        "--families": ",".join(identity["families"]), "--seed": identity["seed"],
+        "--robot": identity.get("robot_files") or None, "--stack": identity["stack"],
+        "--out": "fuzz_case"}, key)
+
+
+def _failure_defect(piece: dict, failure: dict, identity: dict) -> dict:
+    """A defect entry for a piece that raised, hung or killed its workers."""
+    return {"family": piece["family"], "backend": piece["backend"], "seed": identity["seed"],
+            "case": piece["key"], "case_seed": piece["seed"], "injected": "-",
+            "defect": failure["failure"], "message": failure["message"],
+            "attempts": failure["attempts"],
+            "reproduce": reproduce_command(identity, piece["key"])}
 
 
 def markdown(result: dict) -> str:
@@ -730,12 +883,15 @@ def markdown(result: dict) -> str:
     for d in result["defects"]:
         lines.append(f"\n- `{d['backend']}` {d['family']} {d['injected']}: {d['defect']} — "
                      f"{d['message']}")
+        if "reproduce" in d:  # a piece that raised, hung or killed its workers
+            lines.append(f"  (case `{d['case']}`, seed {d['case_seed']}, "
+                         f"{d['attempts']} attempt(s); rerun: `{d['reproduce']}`)")
     return "\n".join(lines) + "\n"
 
 
 def main(argv=None) -> int:
     """``wbc fuzz [--cases N] [--backends a,b] [--families f,g] [--seconds S] [--seed K]
-    [--out DIR]``."""
+    [--out DIR] [--workers N | --scheduler ADDRESS] [--time-limit S] [--case KEY]``."""
     parser = argparse.ArgumentParser(prog="wbc fuzz", description="a seeded fuzz campaign "
                                      "over stacks, workspaces and robot controllers")
     parser.add_argument("--cases", type=int, default=10_000)
@@ -753,7 +909,9 @@ def main(argv=None) -> int:
                         help="the robot family's controller from a stack of your own: "
                              "function(robot) -> wbc.Stack with a frame task named 'ee'")
     parser.add_argument("--out", type=Path, default=Path("results"))
+    add_cluster_arguments(parser)
     args = parser.parse_args(argv)
+    where = cluster_options(parser, args)
     if args.cases < 1:
         parser.error("--cases must be >= 1")
     if args.seconds is not None and not args.seconds > 0:
@@ -763,8 +921,10 @@ def main(argv=None) -> int:
         parser.error(f"--families must be a comma-separated subset of {','.join(FAMILIES)}, "
                      f"got {args.families!r}")
     backends = constructible_backends(parser, args.backends)
-    robots, build = user_robots_and_stack(args.robot, args.stack)
-    result = campaign(args.cases, backends, args.seed, args.seconds, robots, build, families)
+    robot_files = [os.path.abspath(path) for path in args.robot]  # workers: any directory
+    robots, build = user_robots_and_stack(robot_files, args.stack)
+    result = campaign(args.cases, backends, args.seed, args.seconds, robots, build, families,
+                      out=args.out, robot_files=robot_files, **where)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "fuzz.json").write_text(json.dumps(result, indent=1, default=_plain))
     (args.out / "fuzz.md").write_text(markdown(result))
