@@ -257,18 +257,8 @@ class Simulation:
                                "true velocity (state.v_true)")
             v_true = self._state(state.v_true, self.nv, "the true velocity")
             v_meas = self._state(state.v_measured, self.nv, "the measured velocity")
-            rows["t"].append(t)
-            rows["q"].append(q)
-            rows["q_est"].append(q_est)
-            rows["v"].append(v_true)
-            rows["v_est"].append(v_est)
-            rows["command"].append(command)
-            self._record_solution(rows, solution, tick)
-            for name, fn in self.signals.items():
-                signals[name].append(fn(Tick(t, q, q_est, v, command, refs, solution,
-                                             self._probe)))
-            for name, value in state.signals.items():
-                signals.setdefault(name, []).append(value)
+            self._record(rows, signals, Tick(t, q, q_est, v, command, refs, solution,
+                                             self._probe), v_true, v_est, tick, state.signals)
             if self.command == VELOCITY:
                 q = self.robot.integrate(q, v_true, self.dt)
                 q_est = self.robot.integrate(q_est, v_meas, self.dt)
@@ -280,6 +270,24 @@ class Simulation:
                                   for k, val in rows.items()}
         return Run(**arrays, signals={k: np.asarray(val) for k, val in signals.items()},
                    q_final=q, q_est_final=q_est, v_final=v, dt=self.dt, nv_base=self.nv_base)
+
+    def _record(self, rows, signals, at: Tick, v_row: np.ndarray, v_est: np.ndarray,
+                tick_s: float, plant_signals: Mapping[str, object]) -> None:
+        """Record one tick's row: the state ``at`` its start (``v_row``: the velocity the row
+        keeps, see :class:`Run`; ``v_est``: the one the controller was given), the solution,
+        the signals asked for (computed on ``at``) and those the actuation models or the plant
+        produced."""
+        rows["t"].append(at.t)
+        rows["q"].append(at.q)
+        rows["q_est"].append(at.q_est)
+        rows["v"].append(v_row)
+        rows["v_est"].append(v_est)
+        rows["command"].append(at.command)
+        self._record_solution(rows, at.solution, tick_s)
+        for name, fn in self.signals.items():
+            signals[name].append(fn(at))
+        for name, value in plant_signals.items():
+            signals.setdefault(name, []).append(value)
 
     def _plant_tick(self, rows, signals, refs, solution, tick, t, command, q, v, q_est,
                     v_est):
@@ -296,18 +304,8 @@ class Simulation:
         q_new = self._state(step.q, self.nq, "the plant's configuration")
         v_new = self._state(step.v, self.nv, "the plant's velocity")
         v_meas = self._state(step.v_measured, self.nv, "the plant's measured velocity")
-        rows["t"].append(t)
-        rows["q"].append(q)
-        rows["q_est"].append(q_est)
-        rows["v"].append(v_new)
-        rows["v_est"].append(v_est)
-        rows["command"].append(command)
-        self._record_solution(rows, solution, tick)
-        for name, fn in self.signals.items():
-            signals[name].append(fn(Tick(t, q, q_est, v, command, refs, solution,
-                                         self._probe)))
-        for name, value in step.signals.items():
-            signals.setdefault(name, []).append(value)
+        self._record(rows, signals, Tick(t, q, q_est, v, command, refs, solution, self._probe),
+                     v_new, v_est, tick, step.signals)
         if getattr(step, "q_measured", None) is not None:
             q_est = self._state(step.q_measured, self.nq, "the plant's measured configuration")
         else:
