@@ -2,7 +2,8 @@
 
 Built on `viser <https://viser.studio>`_ (the optional extra ``pip install ".[viz]"``; its web
 client ships in the wheel, so it works offline). Layer 3, beside :mod:`wbc.sim`: it imports the
-core, :mod:`wbc.robots` and :mod:`wbc.sim`, never a study.
+layers below (the core, :mod:`wbc.robots`, and :mod:`wbc.tasks` / :mod:`wbc.solvers` for the
+playground's stack) and :mod:`wbc.sim`, never a study.
 
 ::
 
@@ -24,6 +25,8 @@ Modules:
   (``t``, ``q``, status, target and end-effector traces, float32) and its ``.npz`` files, which
   the paper studies write beside their JSON. Needs no viser.
 * :mod:`wbc.viz.viewer` — :class:`Viewer` (viser server, scene, overlays, replays).
+* :mod:`wbc.viz.strip` / :mod:`wbc.viz.strip_offline` — the robot at a few instants of a
+  recorded run, through Chromium or drawn offline with matplotlib (``wbc reproduce``'s strips).
 * :mod:`wbc.viz.playground` — :class:`Playground`: the README's frame + posture + limits stack
   in closed loop on :mod:`wbc.sim` at its control rate, a gizmo on the target, the backend and
   the priority mode switchable live (``wbc play ROBOT``).
