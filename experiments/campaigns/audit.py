@@ -196,24 +196,15 @@ def audit(runs: int, backends: list[str], levels: list[str], ticks: int = 30, se
     if build is not None:
         levels = [user_level(build, robots[0][1]())]
     names = [name for name, _ in robots]
-    cells_plan = plan(runs, backends, levels, names, seed, ticks)
-    if only is not None:
-        cells_plan = [cell for cell in cells_plan if cell["key"] == only]
-        if not cells_plan:
-            raise wbc.UnknownNameError(f"no case {only!r} in this audit (keys look like "
-                                       f"'velocity/daqp/{names[0]}')")
     identity = {"runs": runs, "backends": list(backends), "levels": list(levels),
                 "ticks": ticks, "seed": seed, "robots": names,
                 "stack": getattr(build, "spec", None), "robot_files": list(robot_files)}
     start = time.perf_counter()
-    deadline = None if seconds is None else time.time() + seconds
-    context = cluster.context(robots, build, identity, on_cluster=workers is not None
-                              or scheduler is not None)
-    # a case rerun alone (--case) leaves the campaign's partial file alone
-    finished = cluster.run_cases(run_cell, cells_plan, context, name="audit",
-                                 out=None if only else out, identity=identity,
-                                 workers=workers, scheduler=scheduler, time_limit=time_limit,
-                                 deadline=deadline, progress=progress)
+    _, finished = cluster.run_campaign(
+        run_cell, plan(runs, backends, levels, names, seed, ticks), name="audit",
+        robots=robots, build=build, identity=identity, only=only,
+        keys_hint=f"'velocity/daqp/{names[0]}'", out=out, workers=workers,
+        scheduler=scheduler, time_limit=time_limit, seconds=seconds, progress=progress)
     cells = {result["key"]: result["cell"] for result in finished.results
              if result is not None}
     failures = finished.failures

@@ -55,7 +55,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from wbc.errors import InvalidValueError, WbcError
+from wbc.errors import InvalidValueError, UnknownNameError, WbcError
 
 from ..machine import describe_machine
 from ..progress import report_progress
@@ -503,6 +503,29 @@ def reproduction(command: str, options: dict, key: str) -> str:
 # a campaign's inputs on the workers
 
 _CACHE: dict = {}  # per process: what the current campaign built once (its token's)
+
+
+def run_campaign(work: Callable, cases: list[dict], *, name: str, robots, build,
+                 identity: dict, only: str | None, keys_hint: str, out: Path | None,
+                 workers: int | None, scheduler: str | None, time_limit: float,
+                 seconds: float | None, progress: bool) -> tuple[list[dict], Finished]:
+    """What ``wbc fuzz`` and ``wbc audit`` share around :func:`run_cases`: keep the one case
+    ``only`` names (``--case``; an unknown key raises :class:`~wbc.UnknownNameError` showing
+    ``keys_hint``), stop starting cases after ``seconds`` [s], build the :func:`context`, and run;
+    a case rerun alone leaves the campaign's partial file alone. Returns the cases run and
+    their :class:`Finished`."""
+    if only is not None:
+        cases = [case for case in cases if case["key"] == only]
+        if not cases:
+            raise UnknownNameError(f"no case {only!r} in this {name} campaign (keys look like "
+                                   f"{keys_hint})")
+    deadline = None if seconds is None else time.time() + seconds
+    shared = context(robots, build, identity,
+                     on_cluster=workers is not None or scheduler is not None)
+    finished = run_cases(work, cases, shared, name=name, out=None if only else out,
+                         identity=identity, workers=workers, scheduler=scheduler,
+                         time_limit=time_limit, deadline=deadline, progress=progress)
+    return cases, finished
 
 
 def context(robots, build, identity: dict, on_cluster: bool) -> dict:

@@ -718,25 +718,16 @@ def campaign(cases: int, backends: list[str], seed: int = 0, seconds: float | No
         raise wbc.InvalidValueError(f"families must be a non-empty subset of {list(FAMILIES)}, "
                                     f"got {list(families)}")
     robots = robots or catalogue_robots()
-    pieces = plan(cases, backends, seed, families, [name for name, _ in robots])
-    if only is not None:
-        pieces = [piece for piece in pieces if piece["key"] == only]
-        if not pieces:
-            raise wbc.UnknownNameError(f"no case {only!r} in this campaign (keys look like "
-                                       "'stack/daqp/3', 'robot/daqp/tiago_panda', "
-                                       "'constructors/0')")
     identity = {"cases": cases, "backends": list(backends), "seed": seed,
                 "families": list(families), "robots": [name for name, _ in robots],
                 "stack": getattr(build, "spec", None), "robot_files": list(robot_files)}
     start = time.perf_counter()
-    deadline = None if seconds is None else time.time() + seconds
-    context = cluster.context(robots, build, identity, on_cluster=workers is not None
-                              or scheduler is not None)
-    # a case rerun alone (--case) leaves the campaign's partial file alone
-    finished = cluster.run_cases(run_piece, pieces, context, name="fuzz",
-                                 out=None if only else out, identity=identity,
-                                 workers=workers, scheduler=scheduler, time_limit=time_limit,
-                                 deadline=deadline, progress=progress)
+    pieces, finished = cluster.run_campaign(
+        run_piece, plan(cases, backends, seed, families, [name for name, _ in robots]),
+        name="fuzz", robots=robots, build=build, identity=identity, only=only,
+        keys_hint="'stack/daqp/3', 'robot/daqp/tiago_panda', 'constructors/0'", out=out,
+        workers=workers, scheduler=scheduler, time_limit=time_limit, seconds=seconds,
+        progress=progress)
     failures = {failure["index"]: failure for failure in finished.failures}
     outcomes: dict[str, dict[str, int]] = {}
     defects: list[dict] = []
