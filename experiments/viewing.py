@@ -59,6 +59,26 @@ def _serve(seconds: float | None) -> None:
         pass
 
 
+def _open_and_serve(prog: str, seconds: float | None, open_server) -> int:
+    """Open the server ``open_server()`` makes (viser needed), serve it ``seconds`` [s] (or
+    until Ctrl-C) and close it; returns the exit code: 2 for an unknown name, 1 for another
+    :class:`~wbc.WbcError` (a port in use, the missing ``[viz]`` extra)."""
+    try:
+        from wbc.viz import require_viser
+
+        require_viser()
+        server = open_server()
+    except UnknownNameError as err:
+        return _fail(prog, str(err), 2)
+    except WbcError as err:
+        return _fail(prog, str(err), 1)
+    try:
+        _serve(seconds)
+    finally:
+        server.close()
+    return 0
+
+
 def view_main(argv: Sequence[str] | None = None) -> int:
     """``wbc view DIR [--run NAME] [--port N] [--host H] [--seconds S]`` (module docstring)."""
     parser = _Parser(prog="wbc view", description="Replay the runs a study recorded under DIR "
@@ -86,28 +106,23 @@ def view_main(argv: Sequence[str] | None = None) -> int:
             what = "ambiguous" if matches else "unknown"
             return _fail(parser.prog, f"{what} run {args.run!r}; runs: {sorted(recordings)}", 2)
         name = matches[0]
-    try:
-        from wbc.viz import require_viser
+    first = recordings[name or next(iter(recordings))]
+    if not first.robot:
+        return _fail(parser.prog, "the records name no robot", 2)
 
-        require_viser()
+    def replay():
         import wbc.robots
         from wbc.viz.viewer import Viewer
 
-        first = recordings[name or next(iter(recordings))]
-        robot = wbc.robots.load(first.robot) if first.robot else None
-        if robot is None:
-            return _fail(parser.prog, "the records name no robot", 2)
-        viewer = Viewer(robot, args.host, args.port)
-        viewer.replay(recordings, name)
-    except UnknownNameError as err:
-        return _fail(parser.prog, str(err), 2)
-    except WbcError as err:
-        return _fail(parser.prog, str(err), 1)
-    try:
-        _serve(args.seconds)
-    finally:
-        viewer.close()
-    return 0
+        viewer = Viewer(wbc.robots.load(first.robot), args.host, args.port)
+        try:
+            viewer.replay(recordings, name)
+        except BaseException:
+            viewer.close()  # the port is not left held by a viewer nobody serves
+            raise
+        return viewer
+
+    return _open_and_serve(parser.prog, args.seconds, replay)
 
 
 def load_robot(spec: str):
@@ -151,20 +166,11 @@ def play_main(argv: Sequence[str] | None = None) -> int:
         robot = load_robot(args.robot)
     except WbcError as err:
         return _fail(parser.prog, str(err), 2)
-    try:
-        from wbc.viz import require_viser
 
-        require_viser()
+    def playground():
         from wbc.viz.playground import Playground
 
-        playground = Playground(robot, args.backend, args.host, args.port)
-    except UnknownNameError as err:
-        return _fail(parser.prog, str(err), 2)
-    except WbcError as err:
-        return _fail(parser.prog, str(err), 1)
-    try:
-        _serve(args.seconds)
-    finally:
-        playground.close()
-    return 0
+        return Playground(robot, args.backend, args.host, args.port)
+
+    return _open_and_serve(parser.prog, args.seconds, playground)
 
