@@ -65,7 +65,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import all_finite, checked_flag, checked_number
+from ..checks import all_finite, checked_flag, checked_number, checked_vector
 from ..errors import InvalidValueError, NonFiniteError, ShapeError, WbcError
 from . import mjcf
 
@@ -251,8 +251,8 @@ class MujocoPlant:
                                     f"step {mjcf.TIMESTEP} s")
         if command == "torque" and self.base is None:
             raise WbcError("MujocoPlant: torque commands drive wheels; this robot has none")
-        q0 = self._vector(q0, self.nq, "q0")
-        v0 = self._vector(v0, self.nv, "v0")
+        q0 = checked_vector(q0, self.nq, "q0", broadcast=False)
+        v0 = checked_vector(v0, self.nv, "v0", broadcast=False)
         self._build(command)
         mj, m, d = self._mujoco, self.model, self.data
         mj.mj_resetData(m, d)
@@ -460,15 +460,6 @@ class MujocoPlant:
                 share = math.hypot(force[1], force[2]) / (self.mu * force[0])
                 utilisation[wheel] = max(utilisation[wheel], share)
         return normal, utilisation
-
-    @staticmethod
-    def _vector(value, size: int, what: str) -> np.ndarray:
-        arr = np.array(value, dtype=float).reshape(-1)
-        if arr.shape != (size,):
-            raise ShapeError(f"{what} must have {size} entries, got {arr.shape[0]}")
-        if not all_finite(arr):
-            raise NonFiniteError(f"{what} contains NaN or inf")
-        return arr
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
