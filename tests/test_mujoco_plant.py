@@ -60,6 +60,33 @@ def test_a_base_driven_slowly_rolls_without_slip(base, name, twist):
     assert np.linalg.norm(odometry - twist) <= 0.05 * np.linalg.norm(twist)  # servos track
 
 
+@pytest.mark.parametrize("name", ["omni4_arm6", "mpo700_lwr4"])
+def test_joint_level_commands_drive_the_wheels_as_the_base_model_says(name):
+    # "joints": the controller drives the wheels itself; the wheel (and steer) rates the base
+    # model's inverse kinematics gives for a slow forward twist move the base at that twist
+    robot = wbc.robots.load(name)
+    twist = np.array([0.1, 0.0, 0.0])
+    base = robot.base
+    if name == "mpo700_lwr4":  # steering at 0 (the plant's start): drive only, no steering
+        rates = base.inverse(twist, np.zeros(base.n_wheels))
+        wheels, steers = rates.drive_rates, np.zeros(base.n_wheels)
+    else:
+        wheels, steers = np.asarray(base.jacobian) @ twist, np.zeros(0)
+    command = np.concatenate([wheels, steers, np.zeros(robot.n_arm)])
+    run = Simulation(robot, Constant(command), DT, command="joints",
+                     plant=MujocoPlant(robot)).run(seconds=1.5)
+    true = run.v[50:, :3].mean(axis=0)
+    assert np.linalg.norm(true - twist) <= 0.02 * np.linalg.norm(twist)
+    assert np.abs(run.v[50:, 3:]).max() < 0.01  # the arm holds
+    with pytest.raises(ShapeError, match="entries"):
+        Simulation(robot, Constant(command[:-1]), DT, command="joints",
+                   plant=MujocoPlant(robot)).run(ticks=1)
+    panda = wbc.robots.load_panda()
+    with pytest.raises(WbcError, match="drive wheels"):
+        Simulation(panda, Constant(np.zeros(panda.nv)), DT, command="joints",
+                   plant=MujocoPlant(panda)).run(ticks=1)
+
+
 def test_an_arm_joint_tracks_a_commanded_velocity():
     robot = wbc.robots.load_panda()
     command = np.zeros(robot.nv)

@@ -20,7 +20,7 @@ from wbc.experiments.studies.study import (  # noqa: E402
 )
 
 
-def fake_run(backend, out_dir, quick):
+def fake_run(backend, out_dir, quick, options=None):
     fig, ax = plt.subplots()
     ax.plot([0, 1], [0, 1])
     ax.set_xlabel("time [s]")

@@ -2,9 +2,22 @@
 
 A study (``experiments/studies/<name>.py``) reruns a paper's experiments in simulation
 (:mod:`wbc.sim`) and puts our numbers beside the paper's. Its module defines
-``run(backend: str, out_dir: pathlib.Path, quick: bool) -> StudyResult`` (``out_dir`` is the
-study's own folder, ``DIR/<name>``, where it saves its figures) and
-``main(argv) = study_main("<name>", run, argv)``; ``wbc study <name>`` calls that ``main``.
+
+* ``run(backend: str, out_dir: pathlib.Path, quick: bool, options: StudyOptions) ->
+  StudyResult`` (``out_dir`` is the study's own folder, ``DIR/<name>``, where it saves its
+  figures; ``options`` default ``StudyOptions()``, the single documented run on the
+  kinematic plant);
+* ``PARAMETERS_SWEPT``: ``KEY -> (default, description with units)``, the constants of its setup
+  ``wbc sweep NAME --param KEY=V1,V2`` and ``wbc study NAME --param KEY=V`` may change (a key not
+  listed is refused by :meth:`StudyOptions.check`);
+* ``RANDOM_ELEMENTS``: in words, what one ``seed`` draws (noise, servo errors, wheel radii, start
+  jitter; for a deterministic study, the documented perturbation of its start and targets);
+* ``main(argv) = study_main("<name>", run, argv)``; ``wbc study <name>`` calls that ``main``.
+
+The plants (``--plant``): ``"kinematic"`` (default) integrates the truth through the study's own
+actuation models; ``"mujoco"`` runs the same controllers on :class:`wbc.sim.MujocoPlant`
+(physics, real wheels; the kinematic actuation models are dropped, the physics replaces them).
+The claims keep their ids on both plants.
 
 Output contract (the same for every paper), written by :meth:`StudyResult.write` into
 ``DIR/<name>/``:
@@ -22,6 +35,10 @@ Output contract (the same for every paper), written by :meth:`StudyResult.write`
     :func:`study_main`);
   - ``"machine"``: :func:`wbc.experiments.machine.describe_machine`;
   - ``"parameters"`` and ``"summary"``: what the study chose, in words;
+  - ``"plant"`` (``"kinematic"`` or ``"mujoco"``), ``"seed"`` (``null``: the documented single
+    run) and ``"params"`` (the ``--param`` overrides);
+  - ``"plant_timing"``: ``{"plant", "wall_s", "step_median_s", "step_p95_s", "steps"}`` — the
+    study's wall time and, on a physics plant, the plant's step time per control period;
 
 * ``<name>.md``: the claims table, the timing table and the summary, for a person;
 * the PNG figures the study saved with :func:`save_figure` (labelled axes with units);
@@ -45,7 +62,80 @@ import numpy as np
 
 from ..machine import describe_machine
 
-__all__ = ["Claim", "StudyResult", "save_figure", "study_main", "timing_summary"]
+__all__ = ["PLANTS", "Claim", "StudyOptions", "StudyResult", "make_plant", "parse_params",
+           "plant_timing", "save_figure", "study_main", "timing_summary"]
+
+#: the plants a study runs on (``--plant``)
+PLANTS = ("kinematic", "mujoco")
+
+
+@dataclass(frozen=True)
+class StudyOptions:
+    """How a study runs beyond its backend and horizon.
+
+    Attributes:
+        plant: ``"kinematic"`` or ``"mujoco"`` (see the module docstring).
+        seed: ``None``: the study's documented single run (its own fixed seeds; the claims the
+            README reports); an integer: one Monte-Carlo draw of the study's random elements
+            (``RANDOM_ELEMENTS``) from ``numpy.random.default_rng(seed)``.
+        params: overrides of the study's ``PARAMETERS_SWEPT`` (``KEY -> value``).
+        main_only: the main runs and their claims only — no timing over the backends, no
+            figures, no replay record, no side campaigns (what ``wbc sweep`` runs per seed).
+    """
+
+    plant: str = "kinematic"
+    seed: int | None = None
+    params: dict = field(default_factory=dict)
+    main_only: bool = False
+
+    def __post_init__(self) -> None:
+        from wbc.errors import InvalidValueError
+
+        if self.plant not in PLANTS:
+            raise InvalidValueError(f"plant must be one of {PLANTS}, got {self.plant!r}")
+        if self.seed is not None and (isinstance(self.seed, bool) or int(self.seed) != self.seed
+                                      or self.seed < 0):
+            raise InvalidValueError(f"seed must be an integer >= 0 or None, got {self.seed!r}")
+
+    def check(self, swept: dict) -> None:
+        """Refuse a ``params`` key the study does not sweep (``swept``: its
+        ``PARAMETERS_SWEPT``) or a value that is not a finite number."""
+        from wbc.errors import InvalidValueError, UnknownNameError
+
+        for key, value in self.params.items():
+            if key not in swept:
+                raise UnknownNameError(f"unknown parameter {key!r}; this study's: "
+                                       f"{', '.join(sorted(swept)) or 'none'}")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value):
+                raise InvalidValueError(f"parameter {key} must be a finite number, got "
+                                        f"{value!r}")
+
+    def value(self, key: str, swept: dict) -> float:
+        """The value of ``key``: the override, else the study's default (``swept[key][0]``)."""
+        return float(self.params.get(key, swept[key][0]))
+
+
+def make_plant(robot, options: StudyOptions, **kwargs):
+    """``None`` on the kinematic plant, else ``wbc.sim.MujocoPlant(robot, **kwargs)``."""
+    if options.plant == "kinematic":
+        return None
+    from wbc.sim import MujocoPlant
+
+    return MujocoPlant(robot, **kwargs)
+
+
+def plant_timing(options: StudyOptions, wall_s: float, runs: Sequence = ()) -> dict:
+    """The study's ``"plant_timing"``: its wall time [s] and, on a physics plant, the median and
+    95th percentile of the plant's step per control period over the ``runs``
+    (:class:`wbc.sim.Run` objects, their ``"plant_step_s"`` signal)."""
+    steps = np.concatenate([np.asarray(r.signals["plant_step_s"], dtype=float) for r in runs
+                            if "plant_step_s" in r.signals] or [np.zeros(0)])
+    out: dict = {"plant": options.plant, "wall_s": float(wall_s), "steps": int(steps.size)}
+    if steps.size:
+        out.update(step_median_s=float(np.median(steps)),
+                   step_p95_s=float(np.percentile(steps, 95)))
+    return out
 
 
 @dataclass
@@ -88,6 +178,9 @@ class StudyResult:
         replays: ``"<scenario>/<method>" -> wbc.viz.record.Recording`` of the runs,
             written to ``<name>_replay.npz`` (not part of the JSON).
         robot: the catalogue name of the robot the replays move.
+        options: how it ran (plant, seed, parameter overrides).
+        plant_timing: :func:`plant_timing` (``wall_s`` is set by :func:`study_main` when the
+            study left it out).
     """
 
     name: str
@@ -100,17 +193,26 @@ class StudyResult:
     failures: list[str] = field(default_factory=list)
     replays: dict = field(default_factory=dict)
     robot: str = ""
+    options: StudyOptions = field(default_factory=StudyOptions)
+    plant_timing: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"name": self.name, "claims": [asdict(c) for c in self.claims],
                 "runs": self.runs, "timing": self.timing, "figures": self.figures,
                 "parameters": self.parameters, "summary": self.summary_md,
-                "failures": self.failures, "machine": describe_machine()}
+                "failures": self.failures, "plant": self.options.plant,
+                "seed": self.options.seed, "params": dict(self.options.params),
+                "plant_timing": self.plant_timing, "machine": describe_machine()}
 
     def markdown(self) -> str:
         lines = [f"# Study `{self.name}`", ""]
         held = sum(c.holds for c in self.claims)
-        lines += [f"{held} of {len(self.claims)} claims reproduced.", ""]
+        setting = f"plant: {self.options.plant}"
+        if self.options.seed is not None:
+            setting += f", seed {self.options.seed}"
+        if self.options.params:
+            setting += ", " + ", ".join(f"{k} = {v:g}" for k, v in self.options.params.items())
+        lines += [f"{held} of {len(self.claims)} claims reproduced ({setting}).", ""]
         if self.failures:
             lines += ["**Failures:**", *[f"- {f}" for f in self.failures], ""]
         lines += ["| claim | paper | ours | holds | note |", "|---|---|---|:---:|---|"]
@@ -124,6 +226,13 @@ class StudyResult:
                 lines.append(f"| {backend} | {1e6 * t['tick_median_s']:.1f} | "
                              f"{1e6 * t['tick_p95_s']:.1f} | {t['ticks']} | "
                              f"{t.get('console_lines', 0)} |")
+        if self.plant_timing:
+            p = self.plant_timing
+            line = f"Wall time {p['wall_s']:.1f} s on the {p['plant']} plant"
+            if "step_median_s" in p:
+                line += (f"; plant step per control period median {1e3 * p['step_median_s']:.2f}"
+                         f" ms, p95 {1e3 * p['step_p95_s']:.2f} ms ({p['steps']} steps)")
+            lines += ["", line + "."]
         if self.summary_md:
             lines += ["", self.summary_md.strip()]
         if self.figures:
@@ -242,9 +351,39 @@ def save_figure(fig, path: Path) -> str:
     return path.name
 
 
-def study_main(name: str, run: Callable[[str, Path, bool], StudyResult],
+def parse_params(items: Sequence[str], swept: dict) -> dict[str, list[float]]:
+    """``["KEY=V1,V2", ...]`` -> ``{KEY: [V1, V2]}`` (floats), keys checked against the study's
+    ``PARAMETERS_SWEPT``.
+
+    Raises:
+        InvalidValueError: an item without ``=``, a value that is not a finite number, a key
+            given twice. UnknownNameError: a key the study does not sweep.
+    """
+    from wbc.errors import InvalidValueError
+
+    out: dict[str, list[float]] = {}
+    for item in items:
+        key, equals, values = item.partition("=")
+        key = key.strip()
+        if not equals or not key or not values.strip():
+            raise InvalidValueError(f"--param takes KEY=V1[,V2...], got {item!r}")
+        if key in out:
+            raise InvalidValueError(f"--param {key} given twice")
+        try:
+            numbers = [float(v) for v in values.split(",")]
+        except ValueError:
+            raise InvalidValueError(f"--param {key}: the values must be numbers, got "
+                                    f"{values!r}") from None
+        for number in numbers:
+            StudyOptions(params={key: number}).check(swept)
+        out[key] = numbers
+    return out
+
+
+def study_main(name: str, run: Callable[..., StudyResult],
                argv: Sequence[str] | None = None) -> int:
-    """Command line of a study: ``wbc study NAME [--backend B] [--out DIR] [--quick]``.
+    """Command line of a study: ``wbc study NAME [--backend B] [--out DIR] [--quick]
+    [--plant {kinematic,mujoco}] [--seed N] [--param KEY=V ...]``.
 
     Adds ``"console_lines"`` to the timing of each backend that printed during the run (what
     every solve of that backend printed, the figures' runs included; see
@@ -256,9 +395,11 @@ def study_main(name: str, run: Callable[[str, Path, bool], StudyResult],
     import matplotlib
 
     matplotlib.use("Agg")
+    from wbc.errors import WbcError
     from wbc.solvers import available_backends
     from wbc.solvers.base import CONSOLE_LINES
 
+    swept = getattr(sys.modules.get(run.__module__), "PARAMETERS_SWEPT", {})
     parser = argparse.ArgumentParser(prog=f"wbc study {name}",
                                      description=f"Rerun the {name} paper study in simulation.")
     parser.add_argument("--backend", default="daqp",
@@ -268,20 +409,41 @@ def study_main(name: str, run: Callable[[str, Path, bool], StudyResult],
                         help="output folder (default: results); files go to OUT/%(prog)s")
     parser.add_argument("--quick", action="store_true",
                         help="short horizons, for tests and CI (claims still computed)")
+    parser.add_argument("--plant", choices=PLANTS, default="kinematic",
+                        help="what the truth moves with: the kinematic plant and the study's "
+                             "actuation models (default), or MuJoCo physics (the [mujoco] "
+                             "extra); the JSON records it")
+    parser.add_argument("--seed", type=int, default=None,
+                        help="one Monte-Carlo draw of the study's random elements (default: "
+                             "the documented single run)")
+    parser.add_argument("--param", action="append", default=[], metavar="KEY=V",
+                        help="override a constant of the study's setup; keys: "
+                             + (", ".join(f"{k} ({d[1]}; default {d[0]:g})"
+                                          for k, d in swept.items()) or "none"))
     args = parser.parse_args(argv)
     if args.backend not in available_backends():
         parser.error(f"unknown or unavailable backend {args.backend!r}; available: "
                      f"{available_backends()}")
+    try:
+        params = parse_params(args.param, swept)
+        if any(len(values) > 1 for values in params.values()):
+            raise WbcError("wbc study takes one value per --param (wbc sweep takes several)")
+        options = StudyOptions(plant=args.plant, seed=args.seed,
+                               params={k: v[0] for k, v in params.items()})
+    except WbcError as err:
+        parser.error(str(err))
     started = time.perf_counter()
     printed_before = dict(CONSOLE_LINES)
-    result = run(args.backend, args.out / name, args.quick)
+    result = run(args.backend, args.out / name, args.quick, options)
     for backend, t in result.timing.items():
         printed = CONSOLE_LINES.get(backend, 0) - printed_before.get(backend, 0)
         if printed:
             t["console_lines"] = printed
+    result.plant_timing = {**(result.plant_timing or plant_timing(options, 0.0)),
+                           "wall_s": time.perf_counter() - started}
     folder = result.write(args.out)
     held = sum(c.holds for c in result.claims)
-    print(f"{name}: {held}/{len(result.claims)} claims reproduced; "
+    print(f"{name} ({options.plant} plant): {held}/{len(result.claims)} claims reproduced; "
           f"{time.perf_counter() - started:.1f} s; wrote {folder}/", file=sys.stderr)
     print(result.markdown())
     return 0

@@ -62,8 +62,9 @@ The floor and contacts
     A plane with friction ``mu`` (Coulomb, ``condim=3``: sliding friction, no torsional or
     rolling friction) against the wheels, rollers and casters; an **elliptic** friction cone so
     a contact's traction is bounded by exactly ``μ f_n``; contacts critically damped with a
-    time constant :data:`CONTACT_TIMECONST` of 5 ms (``solref``; MuJoCo's default 20 ms lets
-    loaded contacts creep, see there) and MuJoCo's default ``solimp = (0.9, 0.95, 0.001)``.
+    time constant :data:`CONTACT_TIMECONST` of 2 ms, the stiffest MuJoCo allows (``solref``;
+    MuJoCo's default 20 ms lets loaded contacts creep, see there) and MuJoCo's default
+    ``solimp = (0.9, 0.95, 0.001)``.
     Solver: Newton, ``implicitfast`` integration (the actuators' velocity gains implicit), time
     step :data:`TIMESTEP` (1 ms: the servo period of the omni paper's wheel drives), 100
     iterations, tolerance 1e-10. MuJoCo's no-slip solver (another cure for creep) is off:
@@ -84,7 +85,10 @@ Actuators (by command kind; gains are stated estimates, see :data:`SERVO_BANDWID
     * ``"acceleration"``: arm joints torque motors (the plant computes inverse dynamics), wheels
       as above (the base's acceleration integrated into a velocity target);
     * ``"torque"``: drive wheels torque motors, arm joints and steer joints servos as for
-      ``"velocity"`` (omni force control: the wheels take torques, the arm its own servos).
+      ``"velocity"`` (omni force control: the wheels take torques, the arm its own servos);
+    * ``"joints"``: the actuators of ``"velocity"``, commanded joint by joint (a controller that
+      drives the wheels itself: a steering controller's steer and drive rates, wheel angle
+      servos).
     Every actuator is clipped to its torque limit.
 """
 
@@ -100,10 +104,12 @@ import numpy as np
 from ..checks import checked_number
 from ..errors import InvalidValueError, WbcError
 
-__all__ = ["BASE_HEIGHT", "CONTACT_TIMECONST", "DATASHEET_TORQUES", "DEFAULT_MU", "MjcfModel",
-           "PAPER_MASSES", "SERVO_BANDWIDTH_HZ", "SUSPENSION_DEFLECTION", "TIMESTEP", "WHEELS",
-           "base_kind", "build_mjcf", "roller_shape"]
+__all__ = ["BASE_HEIGHT", "COMMANDS", "CONTACT_TIMECONST", "DATASHEET_TORQUES", "DEFAULT_MU",
+           "MjcfModel", "PAPER_MASSES", "SERVO_BANDWIDTH_HZ", "SUSPENSION_DEFLECTION", "TIMESTEP",
+           "WHEELS", "base_kind", "build_mjcf", "roller_shape"]
 
+#: the command kinds a model's actuators can be built for (see the module docstring)
+COMMANDS = ("velocity", "acceleration", "torque", "joints")
 #: physics time step [s] (the omni paper's servo period, 1 ms).
 TIMESTEP = 0.001
 #: smallest body mass [kg] MuJoCo is given (massless pinocchio bodies, e.g. a flange).
@@ -111,23 +117,26 @@ MIN_MASS = 1e-3
 #: joint and wheel servo bandwidth [Hz] (stated estimate: industrial joint position loops run
 #: at 5–20 Hz; 10 Hz, critically damped).
 SERVO_BANDWIDTH_HZ = 10.0
-#: time constant [s] of the contacts (MuJoCo's ``solref``, critically damped): 5 time steps.
-#: MuJoCo's contacts are soft, and a soft friction constraint lets a loaded contact creep
-#: (slide slowly under a force inside the cone); its default, 20 ms, is meant for time steps of
-#: a few ms and is 20 of ours. Hard rollers and tyres on a hard floor are stiff, so the contacts
-#: are made as stiff as the time step safely allows (MuJoCo asks for at least 2 steps). Measured
-#: (after the choice was questioned by the mecanum base's results, so stated here): with 20 ms
-#: the mecanum base moved 3.7 % slower sideways and 2.4 % slower turning than its wheels'
-#: odometry, the omni base 0.65 % sideways, the PMB2 0.4 %; with 5 ms 1.4 %, 0.8 %, 0.1 %,
-#: 0.04 %; with 2 ms 1.2 %, 0.6 %, 0.02 %, 0.01 %.
-CONTACT_TIMECONST = 0.005
+#: time constant [s] of the contacts (MuJoCo's ``solref``, critically damped): 2 time steps,
+#: the stiffest contact MuJoCo integrates (its documentation asks for ``timeconst`` ≥ 2 time
+#: steps, and its ``refsafe`` flag clamps smaller values to that). The rule, fixed before the
+#: studies ran on this plant: the wheels, rollers and floor are rigid in every model this plant
+#: is compared with (the base models, ``wbc.robots.normal_forces``), so the contacts are as
+#: rigid as MuJoCo allows. (History: a first choice of 5 ms was made after seeing the mecanum
+#: base's validation results, against this project's rule; it was replaced by this rule. The
+#: effect, measured then: with MuJoCo's default 20 ms the mecanum base moved 3.7 % slower
+#: sideways than its wheels' odometry, 1.4 % with 5 ms, 1.2 % with 2 ms.)
+CONTACT_TIMECONST = 2.0 * TIMESTEP
 #: standard gravity [m/s²].
 GRAVITY = 9.81
-#: static deflection [m] of the ground contacts' springs under a contact's mean load (stated
-#: estimate, 1 mm: the compliance of hard rollers, tyres and hubs — these platforms have no
-#: suspension; with 10 mm the platform tilts under an outstretched arm and the load moves
-#: further out than the rigid statics say: 9 % on the omni platform's lighter wheels).
-SUSPENSION_DEFLECTION = 0.001
+#: static deflection [m] of the ground contacts' springs under a contact's mean load. The springs
+#: exist for the statics (a rigid platform on equally stiff supports: ``wbc.robots.normal_forces``'
+#: model), so they are made as stiff as they can be integrated accurately: MuJoCo integrates
+#: joint springs explicitly (``implicitfast`` treats damping implicitly, not stiffness), and a
+#: spring loaded by its share of the robot's mass has ω = √(g/δ); the rule ω·dt ≤ 0.1 (about 60
+#: steps per period) gives δ = g·(10·dt)² = 0.98 mm at dt = 1 ms. Fixed by that rule before the
+#: studies ran on this plant (a first 1 mm had been picked after seeing the load-split results).
+SUSPENSION_DEFLECTION = GRAVITY * (10.0 * TIMESTEP) ** 2
 #: default wheel-floor friction coefficient (stated estimate: rubber on a hard floor 0.6–1.0).
 DEFAULT_MU = 0.8
 
@@ -319,16 +328,15 @@ def build_mjcf(robot, command: str = "velocity", mu: float = DEFAULT_MU, *,
 
     Args:
         robot: a wbc robot (fixed base, or a wheeled planar base).
-        command: ``"velocity"``, ``"acceleration"`` or ``"torque"``.
+        command: ``"velocity"``, ``"acceleration"``, ``"torque"`` or ``"joints"``.
         mu: wheel-floor friction coefficient (> 0).
         masses: ``(platform, arm)`` masses [kg] to scale the base and arm inertias to
             (default :data:`PAPER_MASSES` for the robot's name, else the model's own).
         base_height: height [m] of the base frame above the floor (default
             :data:`BASE_HEIGHT`).
     """
-    if command not in ("velocity", "acceleration", "torque"):
-        raise InvalidValueError(f"command must be 'velocity', 'acceleration' or 'torque', got "
-                                f"{command!r}")
+    if command not in COMMANDS:
+        raise InvalidValueError(f"command must be one of {COMMANDS}, got {command!r}")
     mu = checked_number(mu, "mu", strict=True)
     kind = base_kind(robot)
     model = robot.model

@@ -40,7 +40,12 @@ Commands (``Simulation(command=...)``):
   limits; the base's acceleration is integrated into the wheels' velocity targets;
 * ``"torque"``: ``(n_wheels,)`` drive wheel torques [N m] (the base model's wheel order),
   applied directly (omni force control), optionally followed by ``(n_arm,)`` arm joint
-  velocities for the arm's servos (default: the arm holds its pose).
+  velocities for the arm's servos (default: the arm holds its pose);
+* ``"joints"`` (wheeled bases): ``(n_wheels + n_steer + n_arm,)`` joint rates [rad/s] — the
+  drive wheels' (the base model's wheel order), the steer joints' (steerable base), then the
+  arm's — each to its integrating servo, for a controller that drives the wheels itself (a
+  steering controller's steer and drive rates; wheel angle increments divided by the period:
+  the servo integrates the rate into its angle reference, so it tracks the angles).
 
 Recorded per tick (``run.signals``): ``"wheel_slip"`` (n_wheels,) [m/s] — the mean slip speed
 at each wheel's contact over the tick (rim speed ``r φ̇`` against the contact's speed along the
@@ -249,8 +254,8 @@ class MujocoPlant:
         if substeps < 1 or abs(substeps * mjcf.TIMESTEP - dt) > 1e-9 * dt:
             raise InvalidValueError(f"MujocoPlant: dt = {dt} s must be a multiple of the physics "
                                     f"step {mjcf.TIMESTEP} s")
-        if command == "torque" and self.base is None:
-            raise WbcError("MujocoPlant: torque commands drive wheels; this robot has none")
+        if command in ("torque", "joints") and self.base is None:
+            raise WbcError(f"MujocoPlant: {command} commands drive wheels; this robot has none")
         q0 = checked_vector(q0, self.nq, "q0", broadcast=False)
         v0 = checked_vector(v0, self.nv, "v0", broadcast=False)
         self._build(command)
@@ -338,7 +343,9 @@ class MujocoPlant:
             raise NonFiniteError("MujocoPlant: the command contains NaN or inf")
         nb, kind = self.nv_base, self.command
         n_wheels = len(self._wheel_v)
-        sizes = (n_wheels, n_wheels + len(self._arm_v)) if kind == "torque" else (self.nv,)
+        sizes = {"torque": (n_wheels, n_wheels + len(self._arm_v)),
+                 "joints": (n_wheels + len(self._steer_v) + len(self._arm_v),)}.get(kind,
+                                                                                  (self.nv,))
         if command.shape[0] not in sizes:
             raise ShapeError(f"MujocoPlant: a {kind} command must have "
                              f"{' or '.join(map(str, sizes))} entries, got {command.shape[0]}")
@@ -364,11 +371,16 @@ class MujocoPlant:
             tau = np.zeros(m.nv)
             limit = self.mjcf.arm_torque
             damping = m.dof_damping[self._arm_v]
+        elif kind == "joints":
+            n_drive_steer = n_wheels + len(self._steer_v)
+            d.ctrl[self._wheel_u] = command[:n_wheels]
+            d.ctrl[self._steer_u] = command[n_wheels:n_drive_steer]
+            d.ctrl[self._arm_u] = command[n_drive_steer:]
         else:
             d.ctrl[self._wheel_u] = command[:n_wheels]
             d.ctrl[self._arm_u] = command[n_wheels:] if command.size > n_wheels else 0.0
         for k in range(self._substeps):
-            if self.base is not None and kind != "torque":
+            if self.base is not None and kind in ("velocity", "acceleration"):
                 if kind == "acceleration":
                     base_target = base_start + command[:nb] * (k + 1) * h
                 drive, steer = self._wheel_rates(base_target)

@@ -158,8 +158,9 @@ class Simulation:
             through the actuation chain; a plant object (``reset(q0, v0, dt, command)``,
             ``step(command)``, e.g. :class:`wbc.sim.MujocoPlant`) advances physics instead —
             the estimate then integrates what its encoders measured (or is the configuration
-            the plant measured, ``step.q_measured``), its signals are recorded,
-            and actuation models are refused (the physics is the actuation).
+            the plant measured, ``step.q_measured``), its signals are recorded (with
+            ``"plant_step_s"``: the wall time [s] of each ``step``), and actuation models are
+            refused (the physics is the actuation).
     """
 
     def __init__(self, robot, controller, dt: float, actuation: Sequence[Actuation] = (),
@@ -300,12 +301,14 @@ class Simulation:
             if raw.shape != (self.nv,):
                 raise ShapeError(f"a {self.command} command must have nv = {self.nv} entries, "
                                  f"got {raw.shape[0]}; pass command_map= to select them")
+        started = time.perf_counter()
         step = self.plant.step(raw)
+        plant_s = time.perf_counter() - started
         q_new = self._state(step.q, self.nq, "the plant's configuration")
         v_new = self._state(step.v, self.nv, "the plant's velocity")
         v_meas = self._state(step.v_measured, self.nv, "the plant's measured velocity")
         self._record(rows, signals, Tick(t, q, q_est, v, command, refs, solution, self._probe),
-                     v_new, v_est, tick, step.signals)
+                     v_new, v_est, tick, {**step.signals, "plant_step_s": plant_s})
         if getattr(step, "q_measured", None) is not None:
             q_est = self._state(step.q_measured, self.nq, "the plant's measured configuration")
         else:
