@@ -14,6 +14,11 @@ SteerableDrive`): the commanded base twist goes through the ICR steering QP and 
 controller, and the base moves at the resulting *feasible* twist ``q̇_bf``. The compensated
 controller predicts ``q̇_bf`` with its own copy of the same steering controller (same state,
 same inputs: the paper's "next sample" prediction).
+
+On MuJoCo (``--plant mujoco``) there is no ``SteerableDrive``: a copy of the same steering
+controller (:class:`SteeredJoints`) turns the commanded base twist into the steer and drive
+rates of the MPO700's real steer and drive joints (``Simulation(command="joints")``), and the
+base moves as its wheels on the floor make it.
 """
 
 from __future__ import annotations
@@ -31,8 +36,9 @@ from wbc.papers.sorour import (
     Q_DEX,
     VARIANTS,
     SorourController,
+    SteerableController,
     SteerableDrive,
-    steering_controller,
+    SteerStep,
 )
 from wbc.robots import load
 from wbc.sim import Simulation
@@ -41,11 +47,48 @@ from wbc.tasks import RpyPoseTask
 from wbc.tasks.rpy_pose import pose_error
 from wbc.viz.record import Recording
 
-from .study import Claim, StudyResult, replay_timing, save_figure, study_main
+from .study import (
+    Claim,
+    StudyOptions,
+    StudyResult,
+    make_plant,
+    plant_timing,
+    replay_timing,
+    save_figure,
+    study_main,
+)
 
 # the controller and Table I live in wbc.papers.sorour; their names stay importable from here
 # for compatibility
-__all__ = ["PARAMETERS", "POSES", "SorourController", "main", "run"]
+__all__ = ["PARAMETERS", "PARAMETERS_SWEPT", "POSES", "RANDOM_ELEMENTS", "SorourController",
+           "SteeredJoints", "main", "run"]
+
+#: the steering controller's constants a sweep may change (``--param KEY=V``); the keys are
+#: those of :data:`PARAMETERS`, so the JSON's ``"parameters"`` show the values used. Eq. 14 has
+#: no damping (an exact minimum-norm least-squares QP), so there is none to sweep.
+PARAMETERS_SWEPT = {
+    "icr_gain": (PARAMETERS["icr_gain"], "λ of the ICR velocity controller, our choice [1/s]"),
+    "steer_rate_max": (PARAMETERS["steer_rate_max"],
+                       "β̇max, the steer joints' rate limit (an estimate) [rad/s]"),
+    "steer_acceleration_max": (PARAMETERS["steer_acceleration_max"],
+                               "β̈max, the steer joints' acceleration limit (an estimate) "
+                               "[rad/s²]"),
+    "Kp": (PARAMETERS["Kp"], "K_p of the drive controller (Table I) [1/s]"),
+}
+
+#: the documented single run on the kinematic plant
+DEFAULT_OPTIONS = StudyOptions()
+
+#: half-widths of the uniform re-staging a seed draws (fixed before any seeded run)
+START_JITTER = (0.02, math.radians(2.0))  # base start x, y [m]; heading [rad]
+POSE_JITTER = (0.02, math.radians(2.0))  # end-tip position per axis [m]; roll/pitch/yaw [rad]
+
+RANDOM_ELEMENTS = (
+    "The study is deterministic; a seed re-stages it: the base starts displaced by uniform "
+    "±2 cm in x and y and turned by uniform ±2°; the end tip's initial pose (Table II, from "
+    "which the arm's start is solved) and each of the five target poses are moved by uniform "
+    "±2 cm per axis and ±2° per roll, pitch and yaw angle. Independent streams (numpy "
+    "SeedSequence(seed).spawn): start, targets. The pose schedule (start times) is kept.")
 
 #: Table II: initial end-tip pose, then (start time [s], target pose (x, y, z, roll, pitch,
 #: yaw)).
@@ -63,29 +106,109 @@ FOOTPRINT_WINDOW = 20.0  # [s]: the travel to the first, far pose
 STEADY_WINDOW = 2.0  # [s]: the end of each pose interval
 
 
-def target_at(t: float) -> np.ndarray:
-    """Table II's target pose at time ``t`` [s]."""
-    current = POSES[0][1]
-    for start, pose in POSES:
+def target_at(t: float, poses=POSES) -> np.ndarray:
+    """The target pose at time ``t`` [s] of the schedule ``poses`` (default Table II's)."""
+    current = poses[0][1]
+    for start, pose in poses:
         if t >= start:
             current = pose
     return np.array(current, dtype=float)
 
 
-def initial_configuration(robot) -> np.ndarray:
-    """A configuration with the end tip at Table II's initial pose: the base at the origin,
-    the arm solved by the RPY pose task alone (base pinned) from ``q_dex`` — the paper does not
-    give its initial joint angles."""
+def initial_configuration(robot, pose=INITIAL_POSE) -> np.ndarray:
+    """A configuration with the end tip at ``pose`` (default Table II's initial pose): the base
+    at the origin, the arm solved by the RPY pose task alone (base pinned) from ``q_dex`` — the
+    paper does not give its initial joint angles."""
     stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping=0.01,
                       mobility=np.r_[np.zeros(N_BASE), np.ones(robot.nv - N_BASE)])
     stack.add(RpyPoseTask(robot, "ee", 10.0, name="ee"))
     controller = wbc.Controller(robot, stack, dt=0.01, missing_limits="ignore")  # a plain IK
     q = np.concatenate([np.zeros(robot.nq - Q_DEX.size), Q_DEX])
     for _ in range(500):
-        q = robot.integrate(q, controller.step(q, ee=INITIAL_POSE), 0.01)
-    error = np.abs(pose_error(robot.frame_pose(q, "ee"), INITIAL_POSE)).max()
+        q = robot.integrate(q, controller.step(q, ee=pose), 0.01)
+    error = np.abs(pose_error(robot.frame_pose(q, "ee"), pose)).max()
     if error > 1e-6:
         raise wbc.WbcError(f"initial configuration: pose error {error:.2e} after 500 steps")
+    return q
+
+
+def staging(seed: int | None) -> tuple[np.ndarray, tuple, np.ndarray]:
+    """``(initial end-tip pose, pose schedule, base start offset (x [m], y [m], θ [rad]))``:
+    Table II's and the origin for ``seed=None``, else the re-staging of
+    :data:`RANDOM_ELEMENTS`."""
+    if seed is None:
+        return INITIAL_POSE.copy(), POSES, np.zeros(3)
+    start_rng, target_rng = (np.random.default_rng(s)
+                             for s in np.random.SeedSequence(seed).spawn(2))
+
+    def jitter(rng, pose):
+        half = np.repeat(POSE_JITTER, 3)
+        return np.asarray(pose, dtype=float) + rng.uniform(-half, half)
+
+    base = start_rng.uniform(-np.repeat(START_JITTER, (2, 1)), np.repeat(START_JITTER, (2, 1)))
+    initial = jitter(start_rng, INITIAL_POSE)
+    poses = tuple((start, tuple(jitter(target_rng, pose).tolist())) for start, pose in POSES)
+    return initial, poses, base
+
+
+def base_steering(robot, backend: str, options: StudyOptions) -> SteerableController:
+    """The MPO700's steering controller with Table I's period and the swept constants (their
+    defaults: :func:`wbc.papers.sorour.steering_controller`'s)."""
+    def value(key):
+        return options.value(key, PARAMETERS_SWEPT)
+
+    return SteerableController(robot.base, dt=PARAMETERS["ts"],
+                               steer_rate=value("steer_rate_max"),
+                               steer_acceleration=value("steer_acceleration_max"),
+                               icr_gain=value("icr_gain"), drive_gain=value("Kp"),
+                               backend=backend)
+
+
+class SteeredJoints:
+    """The study's controller on the MuJoCo plant's ``"joints"`` command.
+
+    Each tick it runs the whole-body controller, feeds its base twist ``(v_x [m/s], v_y [m/s],
+    ω [rad/s])`` to ``steering`` (the paper's ICR steering and drive controller) and commands
+    ``[φ̇ (4) [rad/s], β̇ (4) [rad/s], q̇_arm (7) [rad/s]]``: the steering controller's drive and
+    steer rates (both in ``robot.base``'s wheel order, the plant's) and the arm's rates.
+
+    The steering controller keeps its own steering angles (those it integrated from its rates:
+    the references the plant's steer servos track); it has no input for measured angles. The
+    runs record the measured ones (``"steer_angles"``) beside them.
+
+    Attributes:
+        controller: the whole-body controller (``step(q, v, ee=target)``).
+        steering: the :class:`SteerableController` driving the joints.
+        last_step: its :class:`~wbc.papers.sorour.SteerStep` of the last tick.
+    """
+
+    def __init__(self, controller, steering: SteerableController) -> None:
+        self.controller, self.steering = controller, steering
+        self.steering.reset()  # β = 0: the plant starts its steer joints at 0
+        self.last_step: SteerStep | None = None
+
+    @property
+    def last_solution(self):
+        return self.controller.last_solution
+
+    def step(self, q, v=None, ee=None) -> np.ndarray:
+        command = self.controller.step(q, v, ee=ee)
+        self.last_step = step = self.steering.step(command[:N_BASE])
+        return np.concatenate([step.drive_rates, step.steer_rates, command[N_BASE:]])
+
+
+def within_joint_limits(robot, q: np.ndarray) -> np.ndarray:
+    """``q`` with each arm angle moved by whole turns (2π [rad]) into its joint limits where a
+    turn brings it there: the same physical pose. The IK start of :func:`initial_configuration`
+    (no joint limits, as the paper's formulation) has the LWR's joints 1 and 3 at 221° and 212°,
+    beyond their ±170°; MuJoCo's joints have the limits and would throw the arm from there."""
+    q = q.copy()
+    lower, upper = robot.limits.q_lower, robot.limits.q_upper
+    for i in range(N_BASE, robot.nq):
+        turned = q[i] + 2.0 * math.pi * np.arange(-2, 3)
+        inside = turned[(turned >= lower[i]) & (turned <= upper[i])]
+        if not lower[i] <= q[i] <= upper[i] and inside.size:
+            q[i] = inside[np.argmin(np.abs(inside - q[i]))]
     return q
 
 
@@ -98,25 +221,52 @@ def footprint_area(robot, q) -> float:
     return float(ConvexHull(np.vstack([deck, arm])).volume)
 
 
-def simulate(robot, variant: str, backend: str, q0: np.ndarray, seconds: float):
+def simulate(robot, variant: str, backend: str, q0: np.ndarray, seconds: float,
+             options: StudyOptions = DEFAULT_OPTIONS, poses=POSES):
+    """One run of ``variant`` from ``q0`` for ``seconds`` [s] towards the schedule ``poses`` on
+    the plant of ``options`` (the steering constants from its ``params``)."""
     controller = SorourController(robot, variant, backend)
+    # its next-sample prediction (eq. 14) must use the base's steering constants
+    controller.steering = base_steering(robot, backend, options)
 
     def errors(tick):
         e = pose_error(tick.robot.frame_pose(tick.q, "ee"), tick.references["ee"])
         return np.array([np.linalg.norm(e[:3]), np.linalg.norm(e)])
 
-    drive = SteerableDrive(steering_controller(robot, backend))
-    sim = Simulation(robot, controller, dt=PARAMETERS["ts"], actuation=[drive],
-                     signals={"errors": errors,
-                              "psi": lambda tick: controller.psi,
-                              "stack_s": lambda tick: controller.tick_parts["stack"],
-                              "compensation_s": lambda tick: controller.tick_parts[
-                                  "compensation"]})
-    return sim.run(seconds=seconds, q0=q0, references=lambda t: {"ee": target_at(t)})
+    signals = {"errors": errors, "psi": lambda tick: controller.psi,
+               "stack_s": lambda tick: controller.tick_parts["stack"],
+               "compensation_s": lambda tick: controller.tick_parts["compensation"]}
+    plant = make_plant(robot, options)
+    if plant is None:
+        drive = SteerableDrive(base_steering(robot, backend, options))
+        sim = Simulation(robot, controller, dt=PARAMETERS["ts"], actuation=[drive],
+                         signals=signals)
+    else:
+        joints = SteeredJoints(controller, base_steering(robot, backend, options))
+
+        def steer_angles(tick):  # measured at the tick's end (signals are read after the step)
+            return np.array([plant.data.joint(name).qpos[0] for name in plant.mjcf.steer_joints])
+
+        def last() -> SteerStep:  # the steering controller's tick (signals follow a step)
+            assert joints.last_step is not None
+            return joints.last_step
+
+        signals.update(
+            steer_rate_max=lambda tick: float(np.abs(last().steer_rates).max()),
+            steer_acceleration_max=lambda tick: float(np.abs(last().steer_accelerations).max()),
+            icr_qp_s=lambda tick: last().qp_s,
+            steer_angles=steer_angles,
+            steer_reference=lambda tick: last().steering)
+        sim = Simulation(robot, joints, dt=PARAMETERS["ts"], command="joints", plant=plant,
+                         signals=signals)
+    return sim.run(seconds=seconds, q0=q0, references=lambda t: {"ee": target_at(t, poses)})
 
 
 def series(robot, run) -> dict:
-    """The JSON series of one run, with the quantities the claims use."""
+    """The JSON series of one run, with the quantities the claims use; on MuJoCo also what only
+    physics gives: per tick the wheels' slip speed [m/s], normal forces [N], largest actuator
+    saturation share [-], the odometry error of the base's position [m] and heading [rad], and
+    the measured and commanded steering angles [rad]."""
     every = max(1, int(round(0.1 / run.dt)))  # footprint every 0.1 s
     out = run.series(["t", "base_velocity", "tick_s", "steer_rate_max",
                       "steer_acceleration_max", "icr_qp_s", "stack_s", "compensation_s"])
@@ -129,6 +279,12 @@ def series(robot, run) -> dict:
     out["dexterity_distance"] = np.linalg.norm(run.q[:, N_BASE:] - Q_DEX, axis=1).tolist()
     out["footprint_t"] = run.t[::every].tolist()
     out["footprint_area"] = [footprint_area(robot, q) for q in run.q[::every]]
+    if "plant_step_s" in run.signals:
+        out.update(run.series(["wheel_slip", "normal_forces", "plant_step_s", "steer_angles",
+                               "steer_reference"]))
+        out["saturation_max"] = run.signals["saturation"].max(axis=1).tolist()
+        out["odometry_error"] = np.linalg.norm(run.q_est[:, :2] - run.q[:, :2], axis=1).tolist()
+        out["odometry_heading_error"] = (run.q_est[:, 2] - run.q[:, 2]).tolist()
     return out
 
 
@@ -156,9 +312,11 @@ def per_pose(s: dict, key: str, how: str) -> list[float]:
     return out
 
 
-def claims(runs: dict) -> list[Claim]:
+def claims(runs: dict, parameters: dict = PARAMETERS) -> list[Claim]:
+    """The claims from the runs' series (``parameters``: Table I with the swept constants the
+    runs used; the steer limits the last two claims check)."""
     pinv, prop, comp = (runs[v] for v in VARIANTS)
-    rate, accel = PARAMETERS["steer_rate_max"], PARAMETERS["steer_acceleration_max"]
+    rate, accel = parameters["steer_rate_max"], parameters["steer_acceleration_max"]
     out = []
 
     def window_mean(s, key, t_max=FOOTPRINT_WINDOW, tkey="t"):
@@ -309,36 +467,95 @@ compare the variants with each other, not with the paper's numbers.
 """
 
 
-def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
+def plant_summary(runs: dict) -> str:
+    """What the MuJoCo plant changed, with the numbers of the runs (markdown)."""
+    dt = PARAMETERS["ts"]
+    rows = []
+    for v in VARIANTS:
+        s = runs[v]
+        slip = np.asarray(s["wheel_slip"])
+        angles = np.asarray(s["steer_angles"])
+        rates = np.diff(angles, axis=0) / dt
+        accelerations = np.abs(np.diff(rates, axis=0)).max() / dt if len(rates) > 1 else 0.0
+        tracking = np.abs(angles - np.asarray(s["steer_reference"])).max()
+        rows.append(f"| {v} | {1e3 * slip.mean():.1f} | {1e3 * slip.max():.0f} | "
+                    f"{1e3 * s['odometry_error'][-1]:.0f} | "
+                    f"{math.degrees(abs(s['odometry_heading_error'][-1])):.2f} | "
+                    f"{math.degrees(tracking):.2f} | {np.abs(rates).max():.2f} | "
+                    f"{accelerations:.1f} | {100 * max(s['saturation_max']):.0f} |")
+    return "\n".join([
+        "", "**Plant: MuJoCo.** The kinematic plant's `SteerableDrive` is dropped: there the base "
+        "moved exactly at the steering controller's feasible twist (the wheels assumed to track "
+        "their rates: no servo lag, no slip, exact odometry). Here a copy of the same steering "
+        "controller (`SteeredJoints`) sends its steer rates β̇ and drive rates φ̇ to the MPO700's "
+        "steer and drive joint servos (integrating velocity servos, 10 Hz, torque-limited), the "
+        "base moves as its four wheels on the floor make it, and the controller is given wheel "
+        "odometry, while the claims use the true pose. Servo lag, wheel slip and odometry drift "
+        "now come from physics. One source of slip is a model mismatch, not a tuning: the "
+        "paper's inverse actuation model (`wbc.papers.sorour.steering`) has each wheel's contact "
+        "offset sideways by d = 0.045 m and asks for r φ̇ = f(β) ξ + d β̇, while the plant's "
+        "wheels trail their steer axes by d (`wbc.robots.SteerableBase`, `wbc.sim.mjcf`): there "
+        "the paper's rates make each contact slide by d·|ω + β̇| along and across the wheel. "
+        "The steering controller keeps its own steering angles (it has no input for measured "
+        "ones). The plant's arm joints have the LWR's limits, which the paper's formulation "
+        "lacks: the IK start has joints 1 and 3 at 221° and 212°, beyond ±170°, so on MuJoCo "
+        "they start a turn lower, at the same pose (the dexterity distance to q_dex is measured "
+        "from there). Since the claims use the true pose and the controller converges on its "
+        "odometry, the odometry drift (slip while turning, above all the heading) shows as "
+        "steady pose error, and the position error can stay above r_fm (ψ < 1).", "",
+        "| variant | mean slip [mm/s] | max slip [mm/s] | final odometry error [mm] | "
+        "final heading error [°] | max steer tracking error [°] | max measured β̇ [rad/s] | "
+        "max measured β̈ [rad/s²] | max saturation [%] |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|", *rows, ""])
+
+
+def run(backend: str, out_dir: Path, quick: bool,
+        options: StudyOptions = DEFAULT_OPTIONS) -> StudyResult:
+    options.check(PARAMETERS_SWEPT)
+    parameters = {**PARAMETERS, **{k: options.value(k, PARAMETERS_SWEPT)
+                                   for k in PARAMETERS_SWEPT}}
     robot = load("mpo700_lwr4")
-    q0 = initial_configuration(robot)
+    initial_pose, poses, base_start = staging(options.seed)
+    q0 = initial_configuration(robot, initial_pose)
+    q0[:3] += base_start
+    if options.plant == "mujoco":
+        q0 = within_joint_limits(robot, q0)
     seconds = 10.0 if quick else DURATION
-    runs, states = {}, []
+    runs, states, simulated_runs = {}, [], []
     replays: dict[str, Recording] = {}
     for v in VARIANTS:
-        simulated = simulate(robot, v, backend, q0, seconds)
+        simulated = simulate(robot, v, backend, q0, seconds, options, poses)
+        simulated_runs.append(simulated)
         runs[v] = series(robot, simulated)
+        if options.main_only:
+            continue
         replays[f"table_ii/{v}"] = Recording.from_run(
-            simulated, target=np.array([target_at(t)[:3] for t in simulated.t]),
+            simulated, target=np.array([target_at(t, poses)[:3] for t in simulated.t]),
             robot="mpo700_lwr4")
         if v == "compensated":
             every = max(1, len(simulated.t) // 200)
-            states = [(q, target_at(t)) for q, t in zip(simulated.q[::every],
-                                                        simulated.t[::every], strict=True)]
-    backends = [backend] if quick else available_backends()
-    timings, failures = timing(robot, states, backends, 0.5 if quick else 2.0)
-    icr_table = "\n".join(
-        ["", "ICR QP alone (median over the replayed ticks):", "",
-         "| backend | ICR QP median [µs] |", "|---|---:|"]
-        + [f"| {b} | {1e6 * t['icr_qp_median_s']:.0f} |" for b, t in timings.items()])
+            states = [(q, target_at(t, poses)) for q, t in zip(simulated.q[::every],
+                                                               simulated.t[::every], strict=True)]
+    summary = SUMMARY + (plant_summary(runs) if options.plant == "mujoco" else "")
+    timings: dict = {}
+    failures: list[str] = []
+    names: list[str] = []
+    if not options.main_only:
+        backends = [backend] if quick else available_backends()
+        timings, failures = timing(robot, states, backends, 0.5 if quick else 2.0)
+        summary += "\n".join(
+            ["", "ICR QP alone (median over the replayed ticks):", "",
+             "| backend | ICR QP median [µs] |", "|---|---:|"]
+            + [f"| {b} | {1e6 * t['icr_qp_median_s']:.0f} |" for b, t in timings.items()])
+        names = figures(runs, Path(out_dir))
     return StudyResult(
-        name="sorour", claims=claims(runs), runs={"table_ii": runs}, timing=timings,
-        figures=figures(runs, Path(out_dir)), summary_md=SUMMARY + icr_table,
-        failures=failures,
-        parameters={**PARAMETERS, "q_dex": Q_DEX.tolist(), "initial_pose": INITIAL_POSE.tolist(),
-                    "poses": [[s, list(p)] for s, p in POSES], "duration_s": seconds,
+        name="sorour", claims=claims(runs, parameters), runs={"table_ii": runs},
+        timing=timings, figures=names, summary_md=summary, failures=failures,
+        parameters={**parameters, "q_dex": Q_DEX.tolist(), "initial_pose": initial_pose.tolist(),
+                    "poses": [[s, list(p)] for s, p in poses], "duration_s": seconds,
                     "q0": q0.tolist(), "backend": backend},
-        replays=replays, robot="mpo700_lwr4")
+        replays=replays, robot="mpo700_lwr4", options=options,
+        plant_timing=plant_timing(options, 0.0, simulated_runs))
 
 
 def main(argv=None) -> int:
