@@ -1,0 +1,130 @@
+"""`wbc study petric` with its options: the MuJoCo plant keeps the claims' ids, a seed re-stages
+the scenarios reproducibly, ``main_only`` runs only the scenarios, ``--param`` overrides reach
+the runs, and the default run's claims are those of the study before the options existed."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from wbc.errors import UnknownNameError
+from wbc.experiments.studies import petric
+from wbc.experiments.studies.study import StudyOptions
+from wbc.robots import load
+
+IDS = ["fixed_base_error", "retreat_low", "retreat_high", "vertical", "sine_heading", "bounds",
+       "constant_time", "damped_projector_leak", "whole_body_vs_decoupled"]
+"""The claim ids of `wbc study petric --quick` on the kinematic plant (before the options)."""
+
+
+def _main_only(tmp_path, **options):
+    return petric.run("daqp", tmp_path, True, StudyOptions(main_only=True, **options))
+
+
+@pytest.fixture(scope="module")
+def main_only(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("main_only")
+    return folder, _main_only(folder)
+
+
+@pytest.fixture(scope="module")
+def mujoco(tmp_path_factory):
+    pytest.importorskip("mujoco")
+    out = tmp_path_factory.mktemp("petric")
+    assert petric.main(["--quick", "--out", str(out), "--plant", "mujoco"]) == 0
+    return out / "petric", json.loads((out / "petric" / "petric.json").read_text())
+
+
+def test_default_claims_are_the_ones_before_the_options(main_only):
+    """Numbers of `wbc study petric --quick` computed before StudyOptions existed; main_only
+    runs the same scenario runs, and leaves out constant_time (wall time, a side campaign)."""
+    _, result = main_only
+    assert result.options.seed is None and result.options.plant == "kinematic"
+    claims = {c.id: c for c in result.claims}
+    assert list(claims) == [i for i in IDS if i != "constant_time"]
+    assert {i: c.holds for i, c in claims.items()} == {
+        "fixed_base_error": True, "retreat_low": True, "retreat_high": True, "vertical": True,
+        "sine_heading": False, "bounds": True, "damped_projector_leak": False,
+        "whole_body_vs_decoupled": True}
+    assert claims["fixed_base_error"].ours["ratio"] == pytest.approx(4.461921608225918,
+                                                                     rel=1e-12)
+    assert claims["retreat_low"].ours["turn_deg"] == pytest.approx(38.52829456873698, rel=1e-12)
+    assert claims["sine_heading"].ours["large_deg"] == pytest.approx(2.170062436742392,
+                                                                    rel=1e-12)
+    assert claims["damped_projector_leak"].ours["max_mm_s"] == pytest.approx(
+        138.16435317460724, rel=1e-12)
+    assert claims["whole_body_vs_decoupled"].ours["rms_whole_body_mm"]["forward"] == \
+        pytest.approx(5.214926713919179, rel=1e-12)
+
+
+def test_the_lag_fit_recovers_the_kinematic_lag(main_only):
+    # the fit over the small-signal ticks gives back the model's lag
+    _, result = main_only
+    assert result.parameters["base_lag_fit_s"]["tau_v_s"] == pytest.approx(petric.BASE_LAG,
+                                                                           rel=1e-6)
+    assert result.parameters["base_lag_s"] == petric.BASE_LAG
+
+
+def test_mujoco_keeps_the_claim_ids_and_records_the_physics(mujoco):
+    folder, data = mujoco
+    assert data["plant"] == "mujoco"
+    assert [c["id"] for c in data["claims"]] == IDS
+    assert data["figures"] == ["petric_field_slices.png", "petric_fig6.png"]
+    assert all((folder / f).stat().st_size > 0 for f in data["figures"])
+    timing = data["plant_timing"]
+    assert timing["plant"] == "mujoco" and timing["steps"] > 1000
+    assert 0 < timing["step_median_s"] <= timing["step_p95_s"]
+    for series in data["runs"]["sine_large"].values():
+        assert np.shape(series["wheel_slip"]) == (len(series["t"]), 2)
+        assert np.all(np.asarray(series["odometry_error"]) >= 0)
+    # no kinematic lag on MuJoCo: the wheels' servos and the inertia give a measured one
+    assert data["parameters"]["base_lag_s"] is None
+    assert data["parameters"]["base_lag_fit_s"]["tau_omega_s"] > 0
+    assert "MuJoCo plant" in data["summary"]
+
+
+def test_seed_restages_reproducibly(tmp_path, main_only):
+    one, again = (_main_only(tmp_path, seed=1) for _ in range(2))
+    assert [(c.id, c.ours, c.holds) for c in one.claims] == \
+        [(c.id, c.ours, c.holds) for c in again.claims]
+    assert one.claims[0].ours != main_only[1].claims[0].ours
+    robot = load(petric.ROBOT)
+    documented, other = petric.stagings(robot, None), petric.stagings(robot, 2)
+    for name in petric.SCENARIOS:
+        staged = one.parameters["staging"][name]
+        assert not np.array_equal(staged["q0"], other[name].q0)
+        assert not np.array_equal(staged["amplitude"], other[name].amplitude)
+        assert np.all(np.abs(staged["amplitude"] - 1.0) <= petric.AMPLITUDE)
+        shift = staged["q0"] - documented[name].q0
+        assert np.all(np.abs(shift[:2]) <= petric.START_XY)
+        assert np.all(np.abs(shift[2:]) <= max(petric.START_YAW, petric.START_ARM))
+        assert np.all(shift != 0.0)
+
+
+def test_main_only_runs_the_scenarios_only(main_only):
+    folder, result = main_only
+    assert result.figures == [] and result.timing == {} and result.replays == {}
+    assert not list(folder.iterdir())
+    assert "field_slices" not in result.runs
+    assert result.plant_timing["steps"] == 0  # no physics plant, nothing timed per step
+
+
+def test_unknown_param_is_refused(tmp_path):
+    with pytest.raises(UnknownNameError):
+        petric.run("daqp", tmp_path, True, StudyOptions(params={"NO_SUCH_KEY": 1.0}))
+    with pytest.raises(SystemExit):
+        petric.main(["--quick", "--out", str(tmp_path), "--param", "NO_SUCH_KEY=1"])
+
+
+def test_overrides_reach_the_runs(tmp_path, main_only):
+    changed = _main_only(tmp_path, params={"BASE_LAG": 0.05, "KP": 20.0, "B_D": 0.3})
+    assert changed.parameters["base_lag_s"] == 0.05 and changed.parameters["kp"] == 20.0
+    assert changed.parameters["field"]["b_d"] == 0.3
+    # the lag the runs show is the overridden one
+    assert changed.parameters["base_lag_fit_s"]["tau_v_s"] == pytest.approx(0.05, rel=1e-6)
+    # a stiffer TCP task tracks the moving forward reference closer
+    ours = {c.id: c.ours for c in changed.claims}["fixed_base_error"]
+    default = {c.id: c.ours for c in main_only[1].claims}["fixed_base_error"]
+    assert ours["rms_moving_m"] < default["rms_moving_m"]
