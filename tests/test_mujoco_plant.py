@@ -265,3 +265,61 @@ def test_bad_inputs_raise():
                                  root="free_flyer", ee_frame="tool0")
     with pytest.raises(WbcError, match="free_flyer"):
         MujocoPlant(flyer)
+
+
+def test_passive_wheels_roll_freely_and_their_commands_are_ignored():
+    # the omni paper's two-motor experiment: wheels 0 and 2 without motors; wheels 1 and 3
+    # (opposite, driving along one line) move the platform along it and turn it, and the
+    # unpowered wheels roll with the motion (turning needs them to), so the odometry of all
+    # four encoders still matches the truth
+    robot = wbc.robots.load("omni4_arm6")
+    J = np.asarray(robot.base.jacobian)
+    along = J[1, :2] / np.linalg.norm(J[1, :2])
+    twist = np.r_[0.1 * along, 0.2]
+    rates = J @ twist
+    assert abs(rates[0]) > 0.4  # rad/s: the turning asks wheel 0 to roll
+
+    def run_with(passive_entry):
+        command = np.r_[rates, np.zeros(robot.n_arm)]
+        command[[0, 2]] = passive_entry
+        plant = MujocoPlant(robot, passive_wheels=(0, 2))
+        return plant, Simulation(robot, Constant(command), DT, command="joints",
+                                 plant=plant).run(seconds=1.5)
+
+    plant, run = run_with(50.0)
+    assert plant.model.nu == robot.n_arm + 2  # no actuator on wheels 0 and 2
+    assert run.signals["saturation"].shape[1] == robot.n_arm + 2
+    assert np.all(run.signals["wheel_torque"][:, [0, 2]] == 0.0)
+    true = run.v[50:, :3].mean(axis=0)
+    assert np.linalg.norm(true - twist) <= 0.03 * np.linalg.norm(twist)
+    odometry = run.v_est[50:, :3].mean(axis=0)
+    assert np.linalg.norm(odometry - true) <= 0.03 * np.linalg.norm(true)
+    _, same = run_with(0.0)
+    assert np.array_equal(same.q, run.q)  # the passive wheels' entries are ignored
+    with pytest.raises(InvalidValueError, match="passive_wheels"):
+        MujocoPlant(robot, passive_wheels=(4,))
+
+
+@pytest.mark.parametrize("targets", ["integrated", "present"])
+def test_wheel_servo_targets_integrate_or_start_at_the_present_angle(targets):
+    # "joints": the drive servos' angle references either integrate the commanded rates or
+    # are set each period to the wheel's measured angle + rate × period (eq. 3's increments)
+    import mujoco
+
+    robot = wbc.robots.load("omni4_arm6")
+    plant = MujocoPlant(robot, wheel_targets=targets)
+    plant.reset(robot.neutral(), np.zeros(robot.nv), DT, "joints")
+    m, d = plant.model, plant.data
+    rates = np.array([1.0, -2.0, 0.5, 3.0])
+    adr = [int(m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"wheel{i}")])
+           for i in range(4)]
+    act = [int(m.actuator_actadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR,
+                                                   f"servo_wheel{i}")]) for i in range(4)]
+    for _ in range(3):
+        angles, references = d.qpos[adr].copy(), d.act[act].copy()
+        plant.step(np.r_[rates, np.zeros(robot.n_arm)])
+        start = angles if targets == "present" else references
+        assert np.allclose(d.act[act], start + rates * DT, atol=1e-12)
+    assert not np.allclose(d.act[act] - d.qpos[adr], 0.0, atol=1e-4)  # the wheels lag
+    with pytest.raises(InvalidValueError, match="wheel_targets"):
+        MujocoPlant(robot, wheel_targets="absolute")

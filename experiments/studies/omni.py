@@ -22,6 +22,19 @@ needs, the others roll freely, as in the paper's first experiment; ``"min_norm"`
 over the four wheels by the distribution's QP stack (:class:`wbc.tasks.TorqueDistribution`) on
 the chosen backend.
 
+On MuJoCo (``--plant mujoco``, :class:`wbc.sim.MujocoPlant` with the floor's friction μ) the same
+controllers drive the physics model's wheels with their 12 passive rollers each:
+OmniDynamics is dropped — slip, normal forces and odometry error come from the rollers' real
+contacts. Force control commands the wheel torques (``command="torque"``) followed by the arm's
+swing rates; the servo gain errors and torque noise are kept as a perturbation of those
+commanded torques (:class:`_TorqueCommand`); the wheel radius errors have no counterpart (the
+model's wheels have the nominal radius). Position control commands wheel rates
+(``command="joints"``: Δθ / dt) to the plant's own wheel servos, which replace eq. 4's PID —
+their angle references restart at the wheels' present angles each period for ``"position"``
+(``wheel_targets="present"``: eq. 3's increments from the present angle) and integrate into
+absolute angle trajectories for ``"position_reference"``; in ``"y"`` wheels 0 and 2 have no
+actuator (``passive_wheels``) and roll freely. No servo errors there (the servo is the plant's).
+
 Per scenario and method the runs hold ``"t"`` [s], ``"base_velocity"`` (N, 3) [m/s, m/s, rad/s]
 (true body twist), ``"ee_error"`` [m] — here the platform's true position error to its target
 (this robot's study is about the platform, not the end effector) —, ``"odometry_error"`` [m]
@@ -29,7 +42,8 @@ Per scenario and method the runs hold ``"t"`` [s], ``"base_velocity"`` (N, 3) [m
 ``"friction_utilisation"`` (N, 4) (the contact forces', peak per tick),
 ``"planned_utilisation"`` (N, 4) (force control: the commanded torques' ``|τ_i| / (μ f_i r)``),
 ``"normal_forces"`` (N, 4) [N], ``"wheel_torque"`` (N, 4) [N m], ``"base_pose"`` and
-``"odometry_pose"`` (N, 3).
+``"odometry_pose"`` (N, 3); on MuJoCo also ``"wheel_saturation"`` (N, 4) (the fraction of each
+tick a powered wheel's motor was at its torque limit) and ``"base_tilt"`` (N,) [rad].
 """
 
 from __future__ import annotations
@@ -48,9 +62,19 @@ from wbc.sim import Simulation
 from wbc.solvers import available_backends
 from wbc.viz.record import Recording
 
-from .study import Claim, StudyResult, replay_timing, save_figure, study_main
+from .study import (
+    Claim,
+    StudyOptions,
+    StudyResult,
+    make_plant,
+    plant_timing,
+    replay_timing,
+    save_figure,
+    study_main,
+)
 
-__all__ = ["METHODS", "PARAMETERS", "SCENARIOS", "main", "run", "simulate"]
+__all__ = ["METHODS", "PARAMETERS", "PARAMETERS_SWEPT", "RANDOM_ELEMENTS", "SCENARIOS", "main",
+           "run", "simulate"]
 
 #: every value the study chose (the paper gives none of them except the masses and geometry).
 PARAMETERS: dict[str, Any] = {
@@ -68,6 +92,27 @@ PARAMETERS: dict[str, Any] = {
     "seed": 1,
     "sweep_mu": [0.2, 0.5],  # friction coefficients of the robustness sweep (full runs only)
 }
+#: the constants ``--param`` may change: ``KEY -> (default, description [unit])``.
+PARAMETERS_SWEPT = {
+    "mu": (PARAMETERS["mu"], "wheel-floor friction coefficient, of the floor and of the "
+           "distributions [-]"),
+    "acceleration_m_s2": (PARAMETERS["acceleration_m_s2"], "acceleration and deceleration of "
+                          "the trapezoidal reference [m/s²]"),
+    "speed_m_s": (PARAMETERS["speed_m_s"], "cruise speed of the trapezoidal reference [m/s]"),
+    "torque_noise_Nm": (PARAMETERS["torque_noise_Nm"], "servo torque noise σ per tick and wheel "
+                        "[N m]"),
+}
+#: what one ``--seed`` draws (the documented run: the fixed values of :data:`PARAMETERS`).
+RANDOM_ELEMENTS = (
+    "the servos' torque gain errors, uniform in ±5 % per wheel (the documented run's largest); "
+    "the wheel radius errors, uniform in ±0.5 % per wheel (kinematic plant only: MuJoCo's wheels "
+    "have the nominal radius); the seed of the per-tick torque noise (σ = torque_noise_Nm). One "
+    "draw per study run, shared by all its runs (the robot's servos and wheels do not change "
+    "between experiments). On MuJoCo the gain errors and the noise perturb the force "
+    "controllers' commanded torques; position control there runs on the plant's own servos, "
+    "without them.")
+#: the documented run's options (the kinematic plant, the fixed seeds, no overrides)
+DOCUMENTED = StudyOptions()
 #: scenario -> (unit direction in the world, distance [m]); the paper's Fig. 6 and Fig. 7.
 SCENARIOS = {"y": (np.array([0.0, 1.0]), 0.40),
              "diagonal": (np.array([1.0, 1.0]) / math.sqrt(2.0), 0.40 * math.sqrt(2.0))}
@@ -112,12 +157,34 @@ def arm_swing(seconds: float, pan: tuple[float, float]):
     return velocity
 
 
+def setup(options: StudyOptions) -> dict:
+    """The run's parameters: :data:`PARAMETERS` with the ``--param`` overrides and, for a seed,
+    the random elements drawn from it (:data:`RANDOM_ELEMENTS`; independent streams per
+    element)."""
+    p = {**PARAMETERS, **{key: options.value(key, PARAMETERS_SWEPT) for key in options.params}}
+    if options.seed is not None:
+        gains, radii, noise = (np.random.default_rng(stream) for stream
+                               in np.random.SeedSequence(options.seed).spawn(3))
+        gain_bound = max(abs(e) for e in PARAMETERS["gain_error"])
+        radius_bound = max(abs(e) for e in PARAMETERS["radius_error"])
+        p["gain_error"] = gains.uniform(-gain_bound, gain_bound, 4).tolist()
+        p["radius_error"] = radii.uniform(-radius_bound, radius_bound, 4).tolist()
+        p["seed"] = int(noise.integers(2**31))
+    return p
+
+
+def unpowered_wheels(scenario: str, method: str) -> tuple[int, ...]:
+    """The wheels whose motors are off: the paper's first experiment (position control along y)
+    powers only the two motors the motion needs."""
+    return (0, 2) if scenario == "y" and method in POSITION_CONTROL else ()
+
+
 def simulate(robot, scenario: str, method: str, backend: str = "daqp", substeps: int = 10,
-             mu: float | None = None):
-    """One run of ``method`` on ``scenario``: ``(run, references, controller)`` (a force
-    controller records its wrench and normal forces per tick, :class:`_Recording`); ``mu``
-    replaces the friction coefficient of the floor (and of the distribution) if given."""
-    p = {**PARAMETERS, "mu": PARAMETERS["mu"] if mu is None else mu}
+             p: dict | None = None, options: StudyOptions = DOCUMENTED):
+    """One run of ``method`` on ``scenario`` with the parameters ``p`` (default
+    :data:`PARAMETERS`) on ``options.plant``: ``(run, references, controller)`` (a force
+    controller records its torques, wrench and normal forces per tick, :class:`_Recording`)."""
+    p = PARAMETERS if p is None else p
     direction, distance = SCENARIOS[scenario]
     profile, duration = trapezoid(distance, p["speed_m_s"], p["acceleration_m_s2"])
     seconds = duration + p["settle_s"]
@@ -128,27 +195,52 @@ def simulate(robot, scenario: str, method: str, backend: str = "daqp", substeps:
         return {"target": np.r_[direction * s, heading], "velocity": np.r_[direction * ds, 0.0],
                 "acceleration": np.r_[direction * dds, 0.0]}
 
-    errors = dict(gain_error=p["gain_error"], torque_noise=p["torque_noise_Nm"],
-                  radius_error=p["radius_error"], mu=p["mu"], substeps=substeps,
-                  arm_velocity=arm_swing(seconds, p["arm_pan_rad"]))
+    arm = arm_swing(seconds, p["arm_pan_rad"])
     controller: OmniPositionControl | _Recording
-    if method in POSITION_CONTROL:
+    unpowered = unpowered_wheels(scenario, method)
+    position = method in POSITION_CONTROL
+    if position:
         present, servo = POSITION_CONTROL[method]
-        two_motors = [False, True, False, True] if scenario == "y" else None
-        dynamics = OmniDynamics(servo=servo, active=two_motors, **errors)
         controller = OmniPositionControl(robot, present)
     else:
-        dynamics = OmniDynamics(**errors)
         controller = _Recording(OmniForceControl(robot, mu=p["mu"], distribution=TorqueDistribution(
             robot.base.jacobian, method, p["mu"], backend=backend)))
     q0 = robot.neutral()
     q0[2], q0[3] = heading, p["arm_pan_rad"][0]
-    sim = Simulation(robot, controller, p["dt_s"], [dynamics], command="torque", seed=p["seed"])
-    return sim.run(seconds=seconds, q0=q0, references=references), references, controller
+    if options.plant == "kinematic":
+        dynamics = OmniDynamics(
+            servo=servo if position else "torque", gain_error=p["gain_error"],
+            torque_noise=p["torque_noise_Nm"], radius_error=p["radius_error"], mu=p["mu"],
+            substeps=substeps, arm_velocity=arm,
+            active=[i not in unpowered for i in range(4)] if unpowered else None)
+        sim = Simulation(robot, controller, p["dt_s"], [dynamics], command="torque",
+                         seed=p["seed"])
+        return sim.run(seconds=seconds, q0=q0, references=references), references, controller
+    # physics: the arm's swing rates follow the wheels' command; the servos for "position"
+    # start each period from the wheels' present angles (eq. 3's increments)
+    mujoco: _JointCommand | _TorqueCommand
+    if isinstance(controller, OmniPositionControl):
+        mujoco = _JointCommand(controller, p["dt_s"], absolute=present == "reference")
+    else:
+        mujoco = _TorqueCommand(controller, p["gain_error"], p["torque_noise_Nm"], p["seed"])
+    plant = make_plant(robot, options, mu=p["mu"], passive_wheels=unpowered,
+                       wheel_targets="present" if method == "position" else "integrated")
+    sim = Simulation(robot, mujoco, p["dt_s"], command="joints" if position else "torque",
+                     plant=plant)
+    simulated = sim.run(seconds=seconds, q0=q0,
+                        references=lambda t: {**references(t), "arm_velocity": arm(t)})
+    return simulated, references, controller
 
 
-def series(run, references) -> dict:
-    """The JSON series of one run (module docstring)."""
+def series(run, references, unpowered: tuple[int, ...] = ()) -> dict:
+    """The JSON series of one run (module docstring); ``unpowered``: the wheels without a motor
+    (MuJoCo's saturation signal has no column for them)."""
+    physics = {}
+    if "saturation" in run.signals:  # MuJoCo: arm joints, then the powered wheels
+        powered = [i for i in range(4) if i not in unpowered]
+        saturation = np.zeros((len(run.t), 4))
+        saturation[:, powered] = run.signals["saturation"][:, -len(powered):]
+        physics = {"wheel_saturation": saturation, "base_tilt": run.signals["base_tilt"]}
     targets = np.array([references(t)["target"][:2] for t in run.t])
     return {"t": run.t, "base_velocity": run.base_velocity,
             "ee_error": np.linalg.norm(run.q[:, :2] - targets, axis=1),
@@ -159,7 +251,7 @@ def series(run, references) -> dict:
             "wheel_torque": run.signals["wheel_torque"],
             "base_pose": run.q[:, :3], "odometry_pose": run.q_est[:, :3],
             "final_true_position": run.q_final[:2], "final_odometry_position": run.q_est_final[:2],
-            "status": run.status, "tick_s": run.tick_s}
+            "status": run.status, "tick_s": run.tick_s, **physics}
 
 
 def summary_numbers(s: dict, direction: np.ndarray) -> dict:
@@ -181,27 +273,28 @@ def summary_numbers(s: dict, direction: np.ndarray) -> dict:
             "peak_utilisation": np.asarray(s["friction_utilisation"]).max(axis=0).tolist()}
 
 
-def qp_versus_closed_form(runs: dict) -> float:
-    """Largest ``|τ_QP − τ_closed form|`` [N m] over every force-control tick: the run's
-    commanded torques against :func:`wbc.solvers.reference.torque_distribution` fed the same
-    wrench and normal forces."""
+def qp_versus_closed_form(runs: dict, mu: float) -> float:
+    """Largest ``|τ_QP − τ_closed form|`` [N m] over every force-control tick: the torques the
+    distribution commanded against :func:`wbc.solvers.reference.torque_distribution` fed the
+    same wrench, normal forces and friction coefficient ``mu``."""
     worst = 0.0
     for methods in runs.values():
         for method in DISTRIBUTIONS:
             raw = methods[method]["_raw"]
             for tau, wrench, forces in zip(raw["command"], raw["wrench"], raw["forces"],
                                            strict=True):
-                closed = ref.torque_distribution(raw["J"], wrench, forces, PARAMETERS["mu"],
-                                                 method)
+                closed = ref.torque_distribution(raw["J"], wrench, forces, mu, method)
                 worst = max(worst, float(np.abs(tau - closed).max()))
     return worst
 
 
 class _Recording:
-    """Wraps a force controller to record the wrench and normal forces of every tick."""
+    """Wraps a force controller to record the torques [N m] it commanded, its wrench and the
+    normal forces of every tick."""
 
     def __init__(self, controller: OmniForceControl) -> None:
         self.controller = controller
+        self.torques: list[np.ndarray] = []
         self.wrench: list[np.ndarray] = []
         self.forces: list[np.ndarray] = []
 
@@ -210,28 +303,86 @@ class _Recording:
         return self.controller.last_solution
 
     def step(self, q, v, **references):
-        tau = self.controller.step(q, v, **references)
+        tau = np.asarray(self.controller.step(q, v, **references), dtype=float)
+        self.torques.append(tau.copy())
         self.wrench.append(self.controller.last_wrench.copy())
         self.forces.append(self.controller.last_normal_forces.copy())
         return tau
 
 
-def timing(robot, states: list, backends, budget_s: float) -> tuple[dict, list[str]]:
-    """Force-control tick (eq. 6 + the proportional distribution's QP) per backend, replayed on
-    ``states`` (``(q, v, references)`` of the daqp runs), at most ``budget_s`` per backend;
-    ``"qp_median_s"``: the distribution's share (assembly + QP solve)."""
+class _TorqueCommand:
+    """MuJoCo's torque command from a force controller: the wheel torques as the servos produce
+    them, ``(1 + gain_error_i) τ_i + σ ε_i`` (OmniDynamics' servo errors: ``ε ~ N(0, 1)`` per
+    tick and wheel from ``seed``'s generator), then the arm's swing rates [rad/s] (the
+    reference ``arm_velocity``)."""
+
+    def __init__(self, controller: _Recording, gain_error, torque_noise: float,
+                 seed: int) -> None:
+        self.controller = controller
+        self.gain = 1.0 + np.asarray(gain_error, dtype=float)
+        self.torque_noise = float(torque_noise)
+        self.rng = np.random.default_rng(seed)
+
+    @property
+    def last_solution(self):
+        return self.controller.last_solution
+
+    def step(self, q, v, arm_velocity, **references):
+        tau = self.controller.step(q, v, **references)
+        noise = self.torque_noise * self.rng.standard_normal(tau.size)
+        return np.concatenate([self.gain * tau + noise, arm_velocity])
+
+
+class _JointCommand:
+    """MuJoCo's joints command from eq. 3's wheel angle commands: wheel rates [rad/s] — the
+    increments Δθ over the period (``absolute=False``: the plant's servos start each period at
+    the wheels' present angles), or the steps of the absolute angle targets (``absolute=True``:
+    the servos integrate them into the targets) —, then the arm's swing rates."""
+
+    def __init__(self, controller: OmniPositionControl, dt: float, absolute: bool) -> None:
+        self.controller, self.dt, self.absolute = controller, float(dt), absolute
+        self.targets = np.zeros(4)  # the last absolute wheel angle targets [rad]
+
+    last_solution = None
+
+    def step(self, q, v, arm_velocity, **references):
+        command = np.asarray(self.controller.step(q, v, **references), dtype=float)
+        if self.absolute:
+            command, self.targets = command - self.targets, command
+        return np.concatenate([command / self.dt, arm_velocity])
+
+
+def timing(robot, states: list, backends, budget_s: float,
+           mu: float = PARAMETERS["mu"]) -> tuple[dict, list[str]]:
+    """Force-control tick (eq. 6 + the proportional distribution's QP, friction coefficient
+    ``mu``) per backend, replayed on ``states`` (``(q, v, references)`` of the daqp runs), at
+    most ``budget_s`` per backend; ``"qp_median_s"``: the distribution's share (assembly + QP
+    solve)."""
     def controller(backend):
-        distribution = TorqueDistribution(robot.base.jacobian, "proportional", PARAMETERS["mu"],
+        distribution = TorqueDistribution(robot.base.jacobian, "proportional", mu,
                                           backend=backend)
-        return OmniForceControl(robot, mu=PARAMETERS["mu"], distribution=distribution)
+        return OmniForceControl(robot, mu=mu, distribution=distribution)
 
     return replay_timing(backends, controller, states,
                          lambda control, state: control.step(state[0], state[1], **state[2]),
                          budget_s, ("qp_median_s", lambda c: c.last_solution.timings.total))
 
 
-def _position_claims(numbers: dict, method: str, suffix: str, reading: str) -> list[Claim]:
+#: what the position claims' notes say of the plant's error sources, per plant
+MODEL_ERRORS = {
+    "kinematic": ("our floor is flat and the wheels ideal apart from the documented servo and "
+                  "radius errors", "in our model the servos' mutual errors (gain, noise, radius) "
+                  "cause only millimetres of slip"),
+    "mujoco": ("our floor is flat and the wheels are MuJoCo's rollers on the plant's own servos "
+               "(no servo or radius errors)", "on MuJoCo the slip comes from the rollers' "
+               "contacts alone, under servos without mutual errors"),
+}
+
+
+def _position_claims(numbers: dict, method: str, suffix: str, reading: str,
+                     plant: str) -> list[Claim]:
     """The paper's two position-control experiments, for one reading of eq. 3."""
+    flat, slip = MODEL_ERRORS[plant]
     two, four = numbers["y"][method], numbers["diagonal"][method]
     two_rel = two["final_odometry_error_m"] / SCENARIOS["y"][1]
     four_rel = four["final_odometry_error_m"] / SCENARIOS["diagonal"][1]
@@ -243,8 +394,7 @@ def _position_claims(numbers: dict, method: str, suffix: str, reading: str) -> l
                "odometry_cm": round(100 * two["odometry_travel_m"], 2),
                "error_pct": round(100 * two_rel, 2)},
               two["true_travel_m"] < two["odometry_travel_m"],
-              "final positions along y; qualitative anchor: our floor is flat and the wheels "
-              "ideal apart from the documented servo and radius errors, so the magnitude is not "
+              f"final positions along y; qualitative anchor: {flat}, so the magnitude is not "
               "expected to match"),
         Claim(f"four_wheel_error{suffix}",
               f"four motors, x = y to 40 cm (position control, {reading}): odometry error after "
@@ -253,8 +403,7 @@ def _position_claims(numbers: dict, method: str, suffix: str, reading: str) -> l
                "error_pct": round(100 * four_rel, 2)},
               four_rel > 0.5 * 0.155,
               "final |p_true − p_odometry|; holds if at least half the paper's relative error. "
-              "The paper attributes its error to slip on real ground; in our model the servos' "
-              "mutual errors (gain, noise, radius) cause only millimetres of slip"),
+              f"The paper attributes its error to slip on real ground; {slip}"),
         Claim(f"four_wheels_worse_than_two{suffix}",
               f"with four motors mutual servo errors cause slip ({reading}): the relative "
               "odometry error is larger than with two", "15.5 % vs 5.8 %",
@@ -263,23 +412,27 @@ def _position_claims(numbers: dict, method: str, suffix: str, reading: str) -> l
     ]
 
 
-def sweep(robot, backend: str, substeps: int) -> dict:
-    """``scenario -> μ -> distribution -> total slip [m]`` over :data:`PARAMETERS`'s
-    ``"sweep_mu"``: does the ranking of the distributions depend on the floor?"""
+def sweep(robot, backend: str, substeps: int, p: dict = PARAMETERS,
+          options: StudyOptions = DOCUMENTED) -> dict:
+    """``scenario -> μ -> distribution -> total slip [m]`` over ``p["sweep_mu"]`` (the floor's
+    and the distributions' μ; the rest of ``p`` and the plant as in the main runs): does the
+    ranking of the distributions depend on the floor?"""
     out: dict[str, dict] = {}
     for scenario in SCENARIOS:
         out[scenario] = {}
-        for mu in PARAMETERS["sweep_mu"]:
+        for mu in p["sweep_mu"]:
             out[scenario][mu] = {}
             for method in DISTRIBUTIONS:
-                simulated = simulate(robot, scenario, method, backend, substeps, mu)[0]
+                simulated = simulate(robot, scenario, method, backend, substeps,
+                                     {**p, "mu": mu}, options)[0]
                 out[scenario][mu][method] = float(simulated.signals["slip_distance"].sum())
     return out
 
 
-def _ranking_claims(numbers: dict, swept: dict) -> list[Claim]:
-    """The two slip rankings over the main runs and the μ sweep."""
-    cases = {f"{scenario}, mu={PARAMETERS['mu']}": {m: numbers[scenario][m]["total_slip_m"]
+def _ranking_claims(numbers: dict, swept: dict, mu: float) -> list[Claim]:
+    """The two slip rankings over the main runs (friction coefficient ``mu``) and the μ
+    sweep."""
+    cases = {f"{scenario}, mu={mu}": {m: numbers[scenario][m]["total_slip_m"]
                                                     for m in DISTRIBUTIONS}
              for scenario in SCENARIOS}
     cases.update({f"{scenario}, mu={mu}": slip for scenario, per_mu in swept.items()
@@ -302,17 +455,28 @@ def _ranking_claims(numbers: dict, swept: dict) -> list[Claim]:
     return out
 
 
-def claims(numbers: dict, runs: dict, qp_gap: float, swept: dict) -> list[Claim]:
-    out = (_position_claims(numbers, "position", "", "present position from odometry")
+def claims(numbers: dict, runs: dict, qp_gap: float, swept: dict | None, mu: float,
+           plant: str = "kinematic") -> list[Claim]:
+    """The claims table; ``swept``: :func:`sweep`'s result (``None``: main runs only, the
+    ``*_sweep`` claims left out)."""
+    out = (_position_claims(numbers, "position", "", "present position from odometry", plant)
            + _position_claims(numbers, "position_reference", "_reference",
-                              "present position = previous reference"))
+                              "present position = previous reference", plant))
     forces = np.vstack([np.asarray(m["normal_forces"]) for s in runs.values()
                         for m in s.values()])
-    ratio = float(forces.max() / forces.min())
+    lifted = int(np.sum(forces <= 0.0))  # wheel-ticks off the floor (MuJoCo's contacts)
+    ratio = float(forces.max() / forces.min()) if not lifted else math.inf
+    # infinity has no JSON form: a lifted wheel is reported by its count of ticks
+    ours = ({"max_over_min": round(ratio, 1)} if not lifted else
+            {"max_over_min": "inf", "max_N": round(float(forces.max()), 1),
+             "wheel_ticks_off_the_floor": lifted})
     out.append(Claim("unequal_normal_forces",
                      "the arm's motion makes the wheels' normal forces unequal (premise)",
-                     "unequal (no numbers)", {"max_over_min": round(ratio, 1)}, ratio > 2.0,
-                     "largest over smallest normal force over all ticks"))
+                     "unequal (no numbers)", ours, ratio > 2.0,
+                     "largest over smallest normal force over all ticks"
+                     + ("; inf: a wheel left the floor (its contacts carried nothing): the "
+                        "centre of mass's height moves load between the wheels under "
+                        "acceleration, which the statics neglect" if lifted else "")))
     for scenario in SCENARIOS:
         n = numbers[scenario]
         out.append(Claim(
@@ -336,7 +500,8 @@ def claims(numbers: dict, runs: dict, qp_gap: float, swept: dict) -> list[Claim]
             f"above 1 (peak {n['minmax']['planned_peak_utilisation']:.3f}: no distribution "
             "avoids slip there), and servo errors, noise and the wheels' rotor inertia act "
             "after the distribution"))
-    out += _ranking_claims(numbers, swept)
+    if swept is not None:
+        out += _ranking_claims(numbers, swept, mu)
     out.append(Claim("qp_equals_closed_form",
                      "the distribution stacks' torques equal the closed forms on every tick",
                      "—", {"max_abs_diff_Nm": qp_gap}, qp_gap <= 1e-6,
@@ -440,7 +605,49 @@ contact forces differ from τᵢ/r by the rotors' inertia and the servo errors.
 """
 
 
-def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
+MUJOCO_SUMMARY = """\
+**Plant: MuJoCo** (`--plant mujoco`). `omni4_arm6` as `wbc.sim.MujocoPlant(robot, mu=μ)`: the
+paper's 15 kg platform (wheels included) and 30 kg arm as rigid bodies, four omni wheels with
+12 passive rollers each on a floor whose friction coefficient is the study's μ (the number the
+distributions use), 1 ms physics steps, wheel odometry from the wheel encoders. Dropped with
+`OmniDynamics`: its planar rigid body (yaw inertia 2 kg m²; MuJoCo's comes from the bodies), its
+per-wheel Coulomb model with the statics' normal forces (MuJoCo's come from the contacts and
+also move with the centre of mass's height under acceleration, which the statics neglect), the
+wheel radius errors (no counterpart: the model's wheels have the nominal radius) and, for
+position control, eq. 4's PID with its gain errors and noise: the plant's own wheel servos
+(10 Hz, `wbc.sim.mjcf`) take the wheel rates (`command="joints"`), `position` setting each
+servo's target to the wheel's present angle + Δθ every period as `OmniDynamics`' servo does,
+`position_reference` integrating them into absolute angle trajectories (the Controllers
+paragraph's PID is the kinematic plant's); in `y` wheels 0 and 2
+have no actuator and roll freely. Kept, decided before the runs: the servo gain errors and the
+torque noise (the kinematic plant's values and noise stream) as a perturbation of the force
+controllers' commanded torques (a controller-side wrapper). The arm follows its swing on its
+joint servos, so its reaction now moves the platform. Slip, friction utilisation (the
+contacts' at each tick's end), normal forces and odometry error come from the rollers'
+contacts; `wheel_saturation` and `base_tilt` are recorded per run.
+
+**What physics changes.** (1) Load transfer: the centre of mass stands above the floor, so
+the trapezoid's ramps move load between the wheels; the lightly loaded wheel (12–25 N in the
+statics) carries nothing on some ticks of the ramps ({lifted} wheel-ticks off the floor over
+the main runs). The distributions still plan with the statics' normal forces, so the torque
+they give that wheel exceeds its friction: most of the slip happens in the deceleration, and
+there the platform slides on while the wheels stop — it travels farther than its odometry
+says, where the kinematic plant's servo errors made it fall short (the `*_shortfall*`
+claims). (2) No mutual servo errors in position control (identical, exact servos, nominal
+radii): the four-motor odometry error stays in millimetres (the `four_wheel*` claims).
+(3) Minmax equalises the planned utilisation with the statics' forces, which raises the
+torque of the lightly loaded wheel — the one the ramps unload —, so it slips more than
+proportional. (4) Momentum: in `y` with two motors nothing holds the platform along the
+unpowered wheels' direction, and the arm's swing pushes it {drift:.1f} cm sideways
+(`position`; the system's centre of mass stays put, the platform moves against the arm's).
+
+"""
+
+
+def run(backend: str, out_dir: Path, quick: bool,
+        options: StudyOptions = DOCUMENTED) -> StudyResult:
+    options.check(PARAMETERS_SWEPT)
+    p = setup(options)
     robot = robots.load("omni4_arm6")
     substeps = 5 if quick else PARAMETERS["substeps"]
     base = robot.base
@@ -449,35 +656,42 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     numbers: dict[str, dict] = {}
     states: list = []
     replays: dict[str, Recording] = {}
+    main_runs = []
     for scenario, (direction, _) in SCENARIOS.items():
         runs[scenario], numbers[scenario] = {}, {}
         for method in METHODS:
             simulated, references, controller = simulate(robot, scenario, method, backend,
-                                                         substeps)
-            s = series(simulated, references)
-            replays[f"{scenario}/{method}"] = Recording.from_run(
-                simulated, target=np.array([references(t)["target"][:2] for t in simulated.t]),
-                robot="omni4_arm6")
+                                                         substeps, p, options)
+            main_runs.append(simulated)
+            s = series(simulated, references, unpowered_wheels(scenario, method))
+            if not options.main_only:
+                replays[f"{scenario}/{method}"] = Recording.from_run(
+                    simulated, robot="omni4_arm6",
+                    target=np.array([references(t)["target"][:2] for t in simulated.t]))
             if method in DISTRIBUTIONS:
-                s["_raw"] = {"command": simulated.command, "J": base.jacobian,
+                s["_raw"] = {"command": controller.torques, "J": base.jacobian,
                              "wrench": controller.wrench, "forces": controller.forces}
                 # what the distribution planned: |τ_i| / (μ f_i r) of the commanded torques
                 s["planned_utilisation"] = np.array([
-                    ref.friction_utilisation(tau, forces, base.radius, PARAMETERS["mu"])
-                    for tau, forces in zip(simulated.command, controller.forces, strict=True)])
+                    ref.friction_utilisation(tau, forces, base.radius, p["mu"])
+                    for tau, forces in zip(controller.torques, controller.forces, strict=True)])
                 if method == "proportional":
                     states += [(q, v, references(t)) for q, v, t in zip(
                         simulated.q_est[::4], simulated.v_est[::4], simulated.t[::4],
                         strict=True)]
             runs[scenario][method] = s
             numbers[scenario][method] = summary_numbers(s, direction)
-    gap = qp_versus_closed_form(runs)
-    swept = {} if quick else sweep(robot, backend, substeps)
+    gap = qp_versus_closed_form(runs, p["mu"])
+    swept = None if options.main_only else {} if quick else sweep(robot, backend, substeps, p,
+                                                                    options)
     for methods in runs.values():
         for s in methods.values():
             s.pop("_raw", None)
-    backends = [backend] if quick else available_backends()
-    timings, failures = timing(robot, states, backends, 0.3 if quick else 1.0)
+    timings: dict = {}
+    failures: list[str] = []
+    if not options.main_only:
+        backends = [backend] if quick else available_backends()
+        timings, failures = timing(robot, states, backends, 0.3 if quick else 1.0, p["mu"])
     table = ["", "| scenario | method | odometry error [cm] | total slip [mm] | peak utilisation "
              "| planned peak | ticks planned > 1 |", "|---|---|---:|---:|---:|---:|---:|"]
     for scenario, per_method in numbers.items():
@@ -490,15 +704,30 @@ def run(backend: str, out_dir: Path, quick: bool) -> StudyResult:
     qp_table = ["", "The distribution's QP alone (median over the replayed ticks):", "",
                 "| backend | QP median [µs] |", "|---|---:|"]
     qp_table += [f"| {b} | {1e6 * t['qp_median_s']:.0f} |" for b, t in timings.items()]
-    parameters = {**PARAMETERS, "substeps": substeps, "backend": backend,
+    parameters = {**p, "substeps": substeps, "backend": backend,
                   "scenarios": {k: {"direction": d.tolist(), "distance_m": s}
                                 for k, (d, s) in SCENARIOS.items()}}
-    return StudyResult(name="omni", claims=claims(numbers, runs, gap, swept),
+    summary = SUMMARY
+    if options.plant == "mujoco":
+        parameters["mujoco"] = {"mu": p["mu"], "passive_wheels_y_position": [0, 2],
+                                "servo_errors_on": "force control's commanded torques",
+                                "wheel_servos": "the plant's (position control)"}
+        y = runs["y"]["position"]  # the platform's motion across the y axis (world x)
+        lifted = sum(int(np.sum(np.asarray(m["normal_forces"]) <= 0.0))
+                     for methods in runs.values() for m in methods.values())
+        summary = (MUJOCO_SUMMARY.format(lifted=lifted,
+                                         drift=100 * abs(y["final_true_position"][0]))
+                   # the kinematic plant's paragraphs but its first (plant) and last (reading)
+                   + "\n\n".join(SUMMARY.split("\n\n")[1:-1]) + "\n")
+    figures_saved = [] if options.main_only else figures(runs, numbers, Path(out_dir))
+    return StudyResult(name="omni", claims=claims(numbers, runs, gap, swept, p["mu"],
+                                                  options.plant),
                        runs={k: {m: {**s, "summary": numbers[k][m]} for m, s in v.items()}
                              for k, v in runs.items()},
-                       timing=timings, figures=figures(runs, numbers, Path(out_dir)),
-                       summary_md=SUMMARY + "\n".join(table + qp_table), parameters=parameters,
-                       failures=failures, replays=replays, robot="omni4_arm6")
+                       timing=timings, figures=figures_saved,
+                       summary_md=summary + "\n".join(table + qp_table), parameters=parameters,
+                       failures=failures, replays=replays, robot="omni4_arm6", options=options,
+                       plant_timing=plant_timing(options, 0.0, main_runs))
 
 
 def main(argv=None) -> int:

@@ -89,11 +89,14 @@ Actuators (by command kind; gains are stated estimates, see :data:`SERVO_BANDWID
     * ``"joints"``: the actuators of ``"velocity"``, commanded joint by joint (a controller that
       drives the wheels itself: a steering controller's steer and drive rates, wheel angle
       servos).
-    Every actuator is clipped to its torque limit.
+    Every actuator is clipped to its torque limit. ``passive_wheels``: those drive wheels get no
+    actuator and roll freely (an unpowered motor: its rotor still turns with the wheel, the
+    armature stays; the omni paper's two-motor experiment).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -194,6 +197,8 @@ class MjcfModel:
         wheel_torque: drive torque limit [N m].
         mu: floor friction coefficient.
         command: the command kind the actuators were made for.
+        passive_wheels: indices (base model's wheel order) of the drive wheels without an
+            actuator.
     """
 
     xml: str
@@ -207,6 +212,7 @@ class MjcfModel:
     wheel_torque: float = math.inf
     mu: float = DEFAULT_MU
     command: str = "velocity"
+    passive_wheels: tuple[int, ...] = ()
 
 
 def base_kind(robot) -> str:
@@ -230,6 +236,7 @@ def base_kind(robot) -> str:
                    "differential, steerable, omni or mecanum base is needed)")
 
 
+@functools.lru_cache(maxsize=64)  # pure geometry, 0.03 s a call: once per wheel kind
 def roller_shape(radius: float, rollers: int, tilt: float) -> tuple[float, float, float]:
     """``(c, b, a)`` [m]: a roller ellipsoid's centre distance from the wheel axis, its radius
     across its axis and its semi-axis along it, for a wheel of ``radius`` with ``rollers``
@@ -323,7 +330,8 @@ def _joint_inertias(model, q, first: int, armature: np.ndarray) -> np.ndarray:
 
 def build_mjcf(robot, command: str = "velocity", mu: float = DEFAULT_MU, *,
                masses: tuple[float, float] | None = None,
-               base_height: float | None = None) -> MjcfModel:
+               base_height: float | None = None,
+               passive_wheels: tuple[int, ...] = ()) -> MjcfModel:
     """The MJCF model of ``robot`` with actuators for ``command`` (see the module docstring).
 
     Args:
@@ -334,11 +342,17 @@ def build_mjcf(robot, command: str = "velocity", mu: float = DEFAULT_MU, *,
             (default :data:`PAPER_MASSES` for the robot's name, else the model's own).
         base_height: height [m] of the base frame above the floor (default
             :data:`BASE_HEIGHT`).
+        passive_wheels: indices of drive wheels (the base model's wheel order) that get no
+            actuator and roll freely (default none).
     """
     if command not in COMMANDS:
         raise InvalidValueError(f"command must be one of {COMMANDS}, got {command!r}")
     mu = checked_number(mu, "mu", strict=True)
     kind = base_kind(robot)
+    passive = tuple(sorted({int(i) for i in passive_wheels}))
+    if passive and (kind == "fixed" or passive[0] < 0 or passive[-1] >= robot.base.n_wheels):
+        raise InvalidValueError(f"passive_wheels must index the base's drive wheels, got "
+                                f"{tuple(passive_wheels)!r}")
     model = robot.model
     planar = kind != "fixed"
     first_joint = 4 if planar else 1  # pinocchio joints 1..3: base_x, base_y, base_theta
@@ -431,7 +445,8 @@ def build_mjcf(robot, command: str = "velocity", mu: float = DEFAULT_MU, *,
             ET.SubElement(actuators, "motor", attrib={**actuator, "name": f"motor_{name}"})
 
     result = MjcfModel(xml="", kind=kind, arm_joints=tuple(arm_joints), arm_torque=torque,
-                       mu=float(mu), command=command, base_height=height)
+                       mu=float(mu), command=command, base_height=height,
+                       passive_wheels=passive)
     if planar:
         links = sum(model.inertias[j].mass for j in range(first_joint, model.njoints))
         platform = base_matrix + arm_root * arm_scale
@@ -584,7 +599,9 @@ def _wheels(robot, kind: str, command: str, base_body: ET.Element, actuators: ET
             wheels.append(f"wheel{i}")
             steers.append(f"steer{i}")
             wheel_bodies.append(f"wheel{i}")
-    for name in wheels:
+    for i, name in enumerate(wheels):
+        if i in result.passive_wheels:  # unpowered: rolls freely
+            continue
         if command == "torque":
             ET.SubElement(actuators, "motor", name=f"motor_{name}", joint=name,
                           forcerange=f"{-limit:.12g} {limit:.12g}")

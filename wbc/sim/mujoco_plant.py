@@ -45,7 +45,16 @@ Commands (``Simulation(command=...)``):
   drive wheels' (the base model's wheel order), the steer joints' (steerable base), then the
   arm's — each to its integrating servo, for a controller that drives the wheels itself (a
   steering controller's steer and drive rates; wheel angle increments divided by the period:
-  the servo integrates the rate into its angle reference, so it tracks the angles).
+  the servo integrates the rate into its angle reference, so it tracks the angles). With
+  ``wheel_targets="present"`` each drive servo's angle reference is set at the period's start
+  to the wheel's measured angle plus its entry times the period, and held over the period: a
+  wheel servo given the target "present angle + Δθ" each period (``OmniDynamics``'
+  ``servo="angle"``); with the default ``"integrated"`` the references integrate the rates
+  (absolute angle trajectories).
+
+``passive_wheels``: those drive wheels have no actuator and roll freely (an unpowered motor);
+their entries in a ``"torque"`` or ``"joints"`` command are ignored, and for ``"velocity"`` and
+``"acceleration"`` commands the base's inverse kinematics still drives only the others.
 
 Recorded per tick (``run.signals``): ``"wheel_slip"`` (n_wheels,) [m/s] — the mean slip speed
 at each wheel's contact over the tick (rim speed ``r φ̇`` against the contact's speed along the
@@ -58,8 +67,9 @@ contacts' normal force and the largest ``|f_t| / (μ f_n)`` of their contacts at
 tilt from the vertical at the tick's end (a robot whose centre of mass leaves its wheels'
 support tips over: the wheels lift, ``normal_forces`` drop to 0);
 ``"wheel_torque"`` (n_wheels,) [N m] — the drive torques the wheels' actuators produced, mean
-over the tick; ``"saturation"`` (n_actuated,) — the fraction of sub-steps each actuated joint
-(arm joints, then drive wheels, then steer joints) was at its torque limit.
+over the tick (0 for a passive wheel); ``"saturation"`` (n_actuated,) — the fraction of
+sub-steps each actuated joint (arm joints, then powered drive wheels, then steer joints) was at
+its torque limit.
 """
 
 from __future__ import annotations
@@ -119,6 +129,10 @@ class MujocoPlant:
         odometry: the controller's estimate comes from the wheel and joint encoders (default);
             ``False``: it is the true state (as from motion capture), ``q_measured = q`` and
             ``v_measured = v``.
+        passive_wheels: indices (the base model's wheel order) of drive wheels without an
+            actuator, rolling freely (default none; see the module docstring).
+        wheel_targets: ``"integrated"`` (default) or ``"present"``: where the drive servos'
+            angle references start each period under ``"joints"`` commands (module docstring).
 
     Attributes:
         model, data: MuJoCo's ``MjModel`` / ``MjData`` after :meth:`reset`.
@@ -127,7 +141,8 @@ class MujocoPlant:
 
     def __init__(self, robot, *, mu: float = mjcf.DEFAULT_MU, masses=None,
                  base_height: float | None = None, settle_s: float = 0.3,
-                 odometry: bool = True) -> None:
+                 odometry: bool = True, passive_wheels=(),
+                 wheel_targets: str = "integrated") -> None:
         self._mujoco = _import_mujoco()
         self.kind = mjcf.base_kind(robot)
         self.settle_s = checked_number(settle_s, "settle_s [s]")
@@ -140,7 +155,14 @@ class MujocoPlant:
             if len(masses) != 2:
                 raise ShapeError(f"masses must be (platform, arm) [kg], got {len(masses)} "
                                  "numbers")
-        mjcf.build_mjcf(robot, "velocity", mu, masses=masses, base_height=base_height)  # checks
+        if wheel_targets not in ("integrated", "present"):
+            raise InvalidValueError(f"wheel_targets must be 'integrated' or 'present', got "
+                                    f"{wheel_targets!r}")
+        self.wheel_targets = wheel_targets
+        description = mjcf.build_mjcf(robot, "velocity", mu, masses=masses,
+                                      base_height=base_height,
+                                      passive_wheels=passive_wheels)  # checks
+        self.passive_wheels = description.passive_wheels
         self.robot = robot
         self.mu, self.masses, self.base_height = mu, masses, base_height
         self.nq, self.nv = int(robot.nq), int(robot.nv)
@@ -158,7 +180,8 @@ class MujocoPlant:
     def _build(self, command: str) -> None:
         if command not in self._built:
             description = mjcf.build_mjcf(self.robot, command, self.mu, masses=self.masses,
-                                          base_height=self.base_height)
+                                          base_height=self.base_height,
+                                          passive_wheels=self.passive_wheels)
             model = self._mujoco.MjModel.from_xml_string(description.xml)
             self._built[command] = (description, model, self._mujoco.MjData(model))
         self.mjcf, self.model, self.data = self._built[command]
@@ -184,13 +207,25 @@ class MujocoPlant:
         prefix = "motor_" if command == "acceleration" else "servo_"
         self._arm_u = np.array([actuator(prefix + n) for n in desc.arm_joints], dtype=int)
         prefix = "motor_" if command == "torque" else "servo_"
-        self._wheel_u = np.array([actuator(prefix + n) for n in desc.wheel_joints], dtype=int)
+        self._powered = np.array([i not in desc.passive_wheels for i in range(len(wheels))],
+                                 dtype=bool)
+        self._wheel_u = np.array([actuator(prefix + n) for n, powered
+                                  in zip(desc.wheel_joints, self._powered, strict=True)
+                                  if powered], dtype=int)
         self._steer_u = np.array([actuator("servo_" + n) for n in desc.steer_joints], dtype=int)
         self._act = {int(u): int(m.actuator_actadr[u]) for u in range(m.nu)
                      if m.actuator_actadr[u] >= 0}
+        # the drive servos' angle references (activations) and their wheels' angles (none for
+        # torque motors)
+        servos = [(self._act[int(u)], int(adr)) for u, adr
+                  in zip(self._wheel_u, self._wheel_q[self._powered], strict=True)
+                  if int(u) in self._act]
+        self._wheel_act = np.array([a for a, _ in servos], dtype=int)
+        self._wheel_act_q = np.array([adr for _, adr in servos], dtype=int)
         # saturation: every actuated joint's dof and its torque limit
-        self._sat_v = np.concatenate([self._arm_v, self._wheel_v, self._steer_v])
-        limits = np.concatenate([desc.arm_torque, np.full(len(wheels) + len(steers),
+        self._sat_v = np.concatenate([self._arm_v, self._wheel_v[self._powered],
+                                      self._steer_v])
+        limits = np.concatenate([desc.arm_torque, np.full(len(self._wheel_u) + len(steers),
                                                           desc.wheel_torque)])
         self._sat_limit = limits * (1.0 - 1e-6)
         # contacts: geom -> wheel index (−1 for none)
@@ -341,7 +376,7 @@ class MujocoPlant:
         command = np.asarray(command, dtype=float).reshape(-1)
         if not all_finite(command):
             raise NonFiniteError("MujocoPlant: the command contains NaN or inf")
-        nb, kind = self.nv_base, self.command
+        nb, kind = self.nv_base, str(self.command)  # set by reset
         n_wheels = len(self._wheel_v)
         sizes = {"torque": (n_wheels, n_wheels + len(self._arm_v)),
                  "joints": (n_wheels + len(self._steer_v) + len(self._arm_v),)}.get(kind,
@@ -373,18 +408,22 @@ class MujocoPlant:
             damping = m.dof_damping[self._arm_v]
         elif kind == "joints":
             n_drive_steer = n_wheels + len(self._steer_v)
-            d.ctrl[self._wheel_u] = command[:n_wheels]
+            d.ctrl[self._wheel_u] = command[:n_wheels][self._powered]
             d.ctrl[self._steer_u] = command[n_wheels:n_drive_steer]
             d.ctrl[self._arm_u] = command[n_drive_steer:]
+            if self.wheel_targets == "present":  # targets: where the wheels are + Δθ, held
+                d.act[self._wheel_act] = (d.qpos[self._wheel_act_q]
+                                          + d.ctrl[self._wheel_u] * self._dt)
+                d.ctrl[self._wheel_u] = 0.0
         else:
-            d.ctrl[self._wheel_u] = command[:n_wheels]
+            d.ctrl[self._wheel_u] = command[:n_wheels][self._powered]
             d.ctrl[self._arm_u] = command[n_wheels:] if command.size > n_wheels else 0.0
         for k in range(self._substeps):
             if self.base is not None and kind in ("velocity", "acceleration"):
                 if kind == "acceleration":
                     base_target = base_start + command[:nb] * (k + 1) * h
                 drive, steer = self._wheel_rates(base_target)
-                d.ctrl[self._wheel_u] = drive
+                d.ctrl[self._wheel_u] = drive[self._powered]
                 d.ctrl[self._steer_u] = steer
             if kind == "acceleration":
                 mj.mj_step1(m, d)
