@@ -87,6 +87,44 @@ def test_joint_level_commands_drive_the_wheels_as_the_base_model_says(name):
                    plant=MujocoPlant(panda)).run(ticks=1)
 
 
+def test_wheels_beside_their_steer_axes_roll_as_the_papers_model_says():
+    # steer_offset="sideways" (Sorour et al.'s wheels): steering on the spot with the drive
+    # rate r φ̇ = d β̇ of the paper's inverse actuation model rolls each contact around its
+    # steer axis and the base stays put; with the wheels held instead, the contacts stay put
+    # and the steer axes (the base) circle them at d β̇
+    robot = wbc.robots.load("mpo700_lwr4")
+    base = robot.base
+    steer_rate = 0.5  # rad/s
+    speeds = []
+    for drive in (base.offset * steer_rate / base.radius, 0.0):
+        command = np.concatenate([np.full(base.n_wheels, drive),
+                                  np.full(base.n_wheels, steer_rate), np.zeros(robot.n_arm)])
+        run = Simulation(robot, Constant(command), DT, command="joints",
+                         plant=MujocoPlant(robot, steer_offset="sideways")).run(seconds=1.0)
+        speeds.append(np.linalg.norm(run.v[30:, :2], axis=1).mean())
+        assert run.signals["wheel_slip"][30:].max() < 1e-3
+    rolling, held = speeds
+    assert rolling < 1e-3 and held == pytest.approx(base.offset * steer_rate, rel=0.05)
+    with pytest.raises(WbcError, match="'joints' commands"):
+        Simulation(robot, Constant(np.zeros(robot.nv)), DT,
+                   plant=MujocoPlant(robot, steer_offset="sideways")).run(ticks=1)
+    with pytest.raises(InvalidValueError, match="steer_offset"):
+        MujocoPlant(robot, steer_offset="ahead")
+
+
+def test_a_simulation_that_diverges_raises(tmp_path, monkeypatch):
+    # MuJoCo resets a state it finds unstable and only warns: the plant turns that into an
+    # error instead of carrying on from the reset state
+    monkeypatch.chdir(tmp_path)  # where MuJoCo writes its warning log
+    robot = wbc.robots.load("omni4_arm6")
+    plant = MujocoPlant(robot)
+    plant.reset(robot.neutral(), np.zeros(robot.nv), DT, "velocity")
+    plant.model.opt.timestep = 0.5  # far beyond what the contacts and servos integrate
+    with pytest.raises(wbc.errors.NonFiniteError, match="diverged"):
+        for _ in range(20):
+            plant.step(np.zeros(robot.nv))
+
+
 def test_an_arm_joint_tracks_a_commanded_velocity():
     robot = wbc.robots.load_panda()
     command = np.zeros(robot.nv)

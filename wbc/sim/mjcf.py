@@ -33,7 +33,8 @@ The base (planar robots: ``robot.root == "planar"``)
       caster contact points (example-robot-data's ``tiago.urdf``: x = 0.1535 and −0.1895 m,
       y = ±0.102 m) — a swivel caster's wheel and fork are simplified to a ball;
     * steerable (``robot.base.hips``): per wheel a steer joint (vertical, at the hip) carrying a
-      drive joint whose wheel trails the steer axis by the offset ``d``;
+      drive joint whose wheel trails the steer axis by the offset ``d`` (or sits beside it, the
+      paper's model: ``steer_offset``, :data:`STEER_OFFSETS`);
     * the tyres of both are rounded: ellipsoids of the wheel's radius and 0.04 m wide (the
       PMB2's wheel width in ``tiago.urdf``), touching the floor at one point as a tyre's
       narrow patch does (a flat cylinder touches at its two edges, which scrub when the base
@@ -108,11 +109,18 @@ from ..checks import checked_number
 from ..errors import InvalidValueError, WbcError
 
 __all__ = ["BASE_HEIGHT", "COMMANDS", "CONTACT_TIMECONST", "DATASHEET_TORQUES", "DEFAULT_MU",
-           "MjcfModel", "PAPER_MASSES", "SERVO_BANDWIDTH_HZ", "SUSPENSION_DEFLECTION", "TIMESTEP",
-           "WHEELS", "base_kind", "build_mjcf", "roller_shape"]
+           "MjcfModel", "PAPER_MASSES", "SERVO_BANDWIDTH_HZ", "STEER_OFFSETS",
+           "SUSPENSION_DEFLECTION", "TIMESTEP", "WHEELS", "base_kind", "build_mjcf", "roller_shape"]
 
 #: the command kinds a model's actuators can be built for (see the module docstring)
 COMMANDS = ("velocity", "acceleration", "torque", "joints")
+#: where a steered wheel's contact sits from its steer axis, by the distance ``d`` of the base
+#: model: ``"trailing"`` — behind it along the rolling direction, a caster
+#: (``wbc.robots.SteerableBase``'s model, the default); ``"sideways"`` — beside it along the
+#: wheel's axle, to the right of the rolling direction (Sorour et al.'s inverse actuation model
+#: ``r φ̇ = f(β) ξ + d β̇``, ``f = [cos β, sin β, d − h_y cos β + h_x sin β]``: the contact at
+#: ``h + d (sin β, −cos β)``).
+STEER_OFFSETS = ("trailing", "sideways")
 #: physics time step [s] (the omni paper's servo period, 1 ms).
 TIMESTEP = 0.001
 #: smallest body mass [kg] MuJoCo is given (massless pinocchio bodies, e.g. a flange).
@@ -199,6 +207,8 @@ class MjcfModel:
         command: the command kind the actuators were made for.
         passive_wheels: indices (base model's wheel order) of the drive wheels without an
             actuator.
+        steer_offset: where a steered wheel sits from its steer axis (see :data:`STEER_OFFSETS`).
+        offset: that distance ``d`` [m] (the base model's ``offset``; 0 without steering).
     """
 
     xml: str
@@ -213,6 +223,14 @@ class MjcfModel:
     mu: float = DEFAULT_MU
     command: str = "velocity"
     passive_wheels: tuple[int, ...] = ()
+    steer_offset: str = "trailing"
+    offset: float = 0.0
+
+    def wheel_offset_vector(self) -> np.ndarray:
+        """A steered wheel's centre [m] in its steer frame (x: the rolling direction)."""
+        if self.steer_offset == "trailing":
+            return np.array([-self.offset, 0.0, 0.0])
+        return np.array([0.0, -self.offset, 0.0])
 
 
 def base_kind(robot) -> str:
@@ -331,7 +349,8 @@ def _joint_inertias(model, q, first: int, armature: np.ndarray) -> np.ndarray:
 def build_mjcf(robot, command: str = "velocity", mu: float = DEFAULT_MU, *,
                masses: tuple[float, float] | None = None,
                base_height: float | None = None,
-               passive_wheels: tuple[int, ...] = ()) -> MjcfModel:
+               passive_wheels: tuple[int, ...] = (),
+               steer_offset: str = "trailing") -> MjcfModel:
     """The MJCF model of ``robot`` with actuators for ``command`` (see the module docstring).
 
     Args:
@@ -344,10 +363,14 @@ def build_mjcf(robot, command: str = "velocity", mu: float = DEFAULT_MU, *,
             :data:`BASE_HEIGHT`).
         passive_wheels: indices of drive wheels (the base model's wheel order) that get no
             actuator and roll freely (default none).
+        steer_offset: ``"trailing"`` or ``"sideways"`` (:data:`STEER_OFFSETS`; steerable bases).
     """
     if command not in COMMANDS:
         raise InvalidValueError(f"command must be one of {COMMANDS}, got {command!r}")
     mu = checked_number(mu, "mu", strict=True)
+    if steer_offset not in STEER_OFFSETS:
+        raise InvalidValueError(f"steer_offset must be one of {STEER_OFFSETS}, got "
+                                f"{steer_offset!r}")
     kind = base_kind(robot)
     passive = tuple(sorted({int(i) for i in passive_wheels}))
     if passive and (kind == "fixed" or passive[0] < 0 or passive[-1] >= robot.base.n_wheels):
@@ -446,7 +469,8 @@ def build_mjcf(robot, command: str = "velocity", mu: float = DEFAULT_MU, *,
 
     result = MjcfModel(xml="", kind=kind, arm_joints=tuple(arm_joints), arm_torque=torque,
                        mu=float(mu), command=command, base_height=height,
-                       passive_wheels=passive)
+                       passive_wheels=passive, steer_offset=steer_offset,
+                       offset=float(robot.base.offset) if kind == "steerable" else 0.0)
     if planar:
         links = sum(model.inertias[j].mass for j in range(first_joint, model.njoints))
         platform = base_matrix + arm_root * arm_scale
@@ -573,13 +597,14 @@ def _wheels(robot, kind: str, command: str, base_body: ET.Element, actuators: ET
         steer_mass = float(data["steer_mass"])
         for i, (hx, hy) in enumerate(np.asarray(base.hips, dtype=float)):
             hip = np.array([hx, hy, z])
+            offset = result.wheel_offset_vector()  # the wheel's centre in the steer frame
             steer = ET.SubElement(suspended(f"wheel{i}", hip), "body", name=f"steer{i}")
             fork = np.eye(3) * steer_mass * 0.05**2
-            _inertial(steer, steer_mass, [-0.5 * d, 0.0, 0.0], fork)
+            _inertial(steer, steer_mass, 0.5 * offset, fork)
             ET.SubElement(steer, "joint", name=f"steer{i}", type="hinge", axis="0 0 1",
                           armature=f"{data['armature']:.12g}", damping="0.1",
                           actuatorfrcrange=f"{-limit:.12g} {limit:.12g}")
-            wheel = ET.SubElement(steer, "body", name=f"wheel{i}", pos=f"{-d:.12g} 0 0")
+            wheel = ET.SubElement(steer, "body", name=f"wheel{i}", pos=_fmt(offset))
             inertia = _cylinder_inertia(wheel_mass, r, width)
             _inertial(wheel, wheel_mass, np.zeros(3), inertia)
             ET.SubElement(wheel, "joint", name=f"wheel{i}", type="hinge", axis="0 1 0",
@@ -594,8 +619,8 @@ def _wheels(robot, kind: str, command: str, base_body: ET.Element, actuators: ET
             ET.SubElement(actuators, "intvelocity", name=f"servo_steer{i}", joint=f"steer{i}",
                           kp=f"{kp:.12g}", kv=f"{kv:.12g}", actrange="-1e6 1e6",
                           forcerange=f"{-limit:.12g} {limit:.12g}")
-            assemblies += _spatial(steer_mass, hip + [-0.5 * d, 0, 0], fork)
-            assemblies += _spatial(wheel_mass, hip + [-d, 0, 0], inertia)
+            assemblies += _spatial(steer_mass, hip + 0.5 * offset, fork)
+            assemblies += _spatial(wheel_mass, hip + offset, inertia)
             wheels.append(f"wheel{i}")
             steers.append(f"steer{i}")
             wheel_bodies.append(f"wheel{i}")

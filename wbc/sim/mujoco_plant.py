@@ -35,9 +35,10 @@ Commands (``Simulation(command=...)``):
 * ``"velocity"``: ``(nv,)`` velocities; the arm's go to its joint velocity servos, the base's
   through the base model's inverse kinematics to the wheel (and steer) servos;
 * ``"acceleration"``: ``(nv,)`` accelerations; arm joints get inverse-dynamics torques each
-  sub-step (MuJoCo's recursive Newton–Euler at the current state, the base taken
-  unaccelerated: its acceleration's reaction on the arm is not fed forward), clipped to their
-  limits; the base's acceleration is integrated into the wheels' velocity targets;
+  sub-step (MuJoCo's recursive Newton–Euler at the current state with the commanded arm and
+  base accelerations: the base's acceleration's reaction on the arm is fed forward; wheels,
+  rollers and springs taken unaccelerated), clipped to their limits; the base's acceleration
+  is integrated into the wheels' velocity targets;
 * ``"torque"``: ``(n_wheels,)`` drive wheel torques [N m] (the base model's wheel order),
   applied directly (omni force control), optionally followed by ``(n_arm,)`` arm joint
   velocities for the arm's servos (default: the arm holds its pose);
@@ -133,6 +134,11 @@ class MujocoPlant:
             actuator, rolling freely (default none; see the module docstring).
         wheel_targets: ``"integrated"`` (default) or ``"present"``: where the drive servos'
             angle references start each period under ``"joints"`` commands (module docstring).
+        steer_offset: a steered wheel ``"trailing"`` its steer axis (default, the base model's
+            caster) or ``"sideways"`` beside it (Sorour et al.'s model; see
+            :data:`wbc.sim.mjcf.STEER_OFFSETS`). The base model's inverse kinematics is a
+            caster's, so ``"sideways"`` takes ``"joints"`` commands only (a steering controller
+            choosing the angles).
 
     Attributes:
         model, data: MuJoCo's ``MjModel`` / ``MjData`` after :meth:`reset`.
@@ -142,7 +148,7 @@ class MujocoPlant:
     def __init__(self, robot, *, mu: float = mjcf.DEFAULT_MU, masses=None,
                  base_height: float | None = None, settle_s: float = 0.3,
                  odometry: bool = True, passive_wheels=(),
-                 wheel_targets: str = "integrated") -> None:
+                 wheel_targets: str = "integrated", steer_offset: str = "trailing") -> None:
         self._mujoco = _import_mujoco()
         self.kind = mjcf.base_kind(robot)
         self.settle_s = checked_number(settle_s, "settle_s [s]")
@@ -160,9 +166,10 @@ class MujocoPlant:
                                     f"{wheel_targets!r}")
         self.wheel_targets = wheel_targets
         description = mjcf.build_mjcf(robot, "velocity", mu, masses=masses,
-                                      base_height=base_height,
-                                      passive_wheels=passive_wheels)  # checks
+                                      base_height=base_height, passive_wheels=passive_wheels,
+                                      steer_offset=steer_offset)  # checks
         self.passive_wheels = description.passive_wheels
+        self.steer_offset = steer_offset
         self.robot = robot
         self.mu, self.masses, self.base_height = mu, masses, base_height
         self.nq, self.nv = int(robot.nq), int(robot.nv)
@@ -181,7 +188,8 @@ class MujocoPlant:
         if command not in self._built:
             description = mjcf.build_mjcf(self.robot, command, self.mu, masses=self.masses,
                                           base_height=self.base_height,
-                                          passive_wheels=self.passive_wheels)
+                                          passive_wheels=self.passive_wheels,
+                                          steer_offset=self.steer_offset)
             model = self._mujoco.MjModel.from_xml_string(description.xml)
             self._built[command] = (description, model, self._mujoco.MjData(model))
         self.mjcf, self.model, self.data = self._built[command]
@@ -238,6 +246,12 @@ class MujocoPlant:
         self._geom_wheel = body_wheel[m.geom_bodyid]
         self._substeps = 0
         self._force = np.zeros(6)
+        self._hips = (np.asarray(self.base.hips, dtype=float) if self.kind == "steerable"
+                      else np.zeros((0, 2)))
+        # MuJoCo's counts of the warnings it gives when it resets an unstable simulation
+        self._unstable = [int(getattr(mj.mjtWarning, name)) for name in
+                          ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC",
+                           "mjWARN_BADCTRL")]
 
     # ------------------------------------------------------------------ state maps
     def _yaw(self) -> float:
@@ -291,6 +305,10 @@ class MujocoPlant:
                                     f"step {mjcf.TIMESTEP} s")
         if command in ("torque", "joints") and self.base is None:
             raise WbcError(f"MujocoPlant: {command} commands drive wheels; this robot has none")
+        if self.steer_offset == "sideways" and self.kind == "steerable" and command != "joints":
+            raise WbcError("MujocoPlant: wheels beside their steer axes (steer_offset="
+                           "'sideways') need 'joints' commands: the base model's inverse "
+                           "kinematics is a trailing caster's")
         q0 = checked_vector(q0, self.nq, "q0", broadcast=False)
         v0 = checked_vector(v0, self.nv, "v0", broadcast=False)
         self._build(command)
@@ -385,6 +403,7 @@ class MujocoPlant:
             raise ShapeError(f"MujocoPlant: a {kind} command must have "
                              f"{' or '.join(map(str, sizes))} entries, got {command.shape[0]}")
         h = mjcf.TIMESTEP
+        warned = sum(d.warning[i].number for i in self._unstable)
         arm_q0 = d.qpos[self._arm_q].copy()
         wheel_q0 = d.qpos[self._wheel_q].copy()
         steer_q0 = d.qpos[self._steer_q].copy()
@@ -403,6 +422,8 @@ class MujocoPlant:
             base_start = self._v_base_target
             arm_acc = command[nb:]
             qacc = np.zeros(m.nv)
+            if self.base is not None:
+                qacc[:6] = self._base_acceleration(command[:nb])
             tau = np.zeros(m.nv)
             limit = self.mjcf.arm_torque
             damping = m.dof_damping[self._arm_v]
@@ -427,7 +448,9 @@ class MujocoPlant:
                 d.ctrl[self._steer_u] = steer
             if kind == "acceleration":
                 mj.mj_step1(m, d)
-                qacc[self._arm_v] = arm_acc  # the rest of the tree taken unaccelerated
+                # the arm's and the base's commanded accelerations (wheels, rollers and springs
+                # taken unaccelerated)
+                qacc[self._arm_v] = arm_acc
                 d.qacc[:] = qacc
                 mj.mj_rne(m, d, 1, tau)
                 d.ctrl[self._arm_u] = np.clip(tau[self._arm_v] + damping * d.qvel[self._arm_v],
@@ -441,8 +464,10 @@ class MujocoPlant:
                 s, lat = self._slip()
                 slip += s
                 lateral += lat
-        if not all_finite(d.qpos):
-            raise NonFiniteError("MujocoPlant: the simulation diverged (NaN in MuJoCo's state)")
+        if not all_finite(d.qpos) or sum(d.warning[i].number for i in self._unstable) > warned:
+            raise NonFiniteError(f"MujocoPlant: the simulation diverged at t = {d.time:.4g} s "
+                                 "(MuJoCo found NaN, inf or huge values in its state and reset "
+                                 "it)")
         if kind == "acceleration":
             self._v_base_target = base_start + command[:nb] * self._dt
         q, v = self._read()
@@ -474,6 +499,18 @@ class MujocoPlant:
             return PlantStep(q, v, v.copy(), signals, q_measured=q.copy())
         return PlantStep(q, v, v_meas, signals)
 
+    def _base_acceleration(self, acceleration: np.ndarray) -> np.ndarray:
+        """The free joint's acceleration (world linear, body angular) of a commanded base
+        acceleration in the base's own coordinates (its frame; turning about the vertical),
+        with the centripetal term of the present motion."""
+        a = np.asarray(self.base.body_map, dtype=float) @ acceleration  # (a_x, a_y, α)
+        yaw = self._yaw()
+        c, s = math.cos(yaw), math.sin(yaw)
+        omega = self._twist()[2]
+        vx, vy = self.data.qvel[0], self.data.qvel[1]
+        return np.array([c * a[0] - s * a[1] - omega * vy, s * a[0] + c * a[1] + omega * vx,
+                         0.0, 0.0, 0.0, a[2]])
+
     def _slip(self) -> tuple[np.ndarray, float]:
         """Per wheel slip speed [m/s] at the contact now, and the base's lateral speed."""
         d = self.data
@@ -486,10 +523,20 @@ class MujocoPlant:
         r = float(self.base.radius)
         rates = d.qvel[self._wheel_v]
         if self.kind == "steerable":
-            twist = np.array([vx, vy, omega])
-            rolling, side = self.base.no_slip_matrices(d.qpos[self._steer_q])
-            along = r * rates - rolling @ twist
-            across = self.base.offset * d.qvel[self._steer_v] - side @ twist
+            # the contact's slip from the wheel's own geometry: e the rolling direction, n the
+            # axle's; the hip moves at v_h; a trailing contact (h − d e) also moves across by
+            # −(ω + β̇) d, a sideways one (h − d n) along by +(ω + β̇) d
+            beta = d.qpos[self._steer_q]
+            c, s = np.cos(beta), np.sin(beta)
+            hips = self._hips
+            hx, hy = vx - omega * hips[:, 1], vy + omega * hips[:, 0]
+            turn = (omega + d.qvel[self._steer_v]) * self.mjcf.offset
+            along = c * hx + s * hy - r * rates
+            across = -s * hx + c * hy
+            if self.steer_offset == "trailing":
+                across = across - turn
+            else:
+                along = along + turn
             return np.hypot(along, across), 0.0
         J = np.asarray(self.base.jacobian, dtype=float)
         coordinates = np.array([vx, omega]) if self.nv_base == 2 else np.array([vx, vy, omega])
