@@ -103,6 +103,8 @@ def test_wheels_beside_their_steer_axes_roll_as_the_papers_model_says():
                          plant=MujocoPlant(robot, steer_offset="sideways")).run(seconds=1.0)
         speeds.append(np.linalg.norm(run.v[30:, :2], axis=1).mean())
         assert run.signals["wheel_slip"][30:].max() < 1e-3
+        # the wheel odometry of this geometry sees the truth
+        assert np.abs(run.v_est[30:, :3] - run.v[30:, :3]).max() < 2e-3
     rolling, held = speeds
     assert rolling < 1e-3 and held == pytest.approx(base.offset * steer_rate, rel=0.05)
     with pytest.raises(WbcError, match="'joints' commands"):

@@ -236,7 +236,8 @@ def simulate(robot, variant: str, backend: str, q0: np.ndarray, seconds: float,
     signals = {"errors": errors, "psi": lambda tick: controller.psi,
                "stack_s": lambda tick: controller.tick_parts["stack"],
                "compensation_s": lambda tick: controller.tick_parts["compensation"]}
-    plant = make_plant(robot, options)
+    # the paper's wheels: each contact beside its steer axis (its inverse actuation model)
+    plant = make_plant(robot, options, steer_offset="sideways")
     if plant is None:
         drive = SteerableDrive(base_steering(robot, backend, options))
         sim = Simulation(robot, controller, dt=PARAMETERS["ts"], actuation=[drive],
@@ -491,11 +492,12 @@ def plant_summary(runs: dict) -> str:
         "steer and drive joint servos (integrating velocity servos, 10 Hz, torque-limited), the "
         "base moves as its four wheels on the floor make it, and the controller is given wheel "
         "odometry, while the claims use the true pose. Servo lag, wheel slip and odometry drift "
-        "now come from physics. One source of slip is a model mismatch, not a tuning: the "
-        "paper's inverse actuation model (`wbc.papers.sorour.steering`) has each wheel's contact "
-        "offset sideways by d = 0.045 m and asks for r φ̇ = f(β) ξ + d β̇, while the plant's "
-        "wheels trail their steer axes by d (`wbc.robots.SteerableBase`, `wbc.sim.mjcf`): there "
-        "the paper's rates make each contact slide by d·|ω + β̇| along and across the wheel. "
+        "now come from physics. The wheels are the paper's: each contact sits beside its steer "
+        "axis by d = 0.045 m (its inverse actuation model r φ̇ = f(β) ξ + d β̇ asks for that "
+        "geometry; `MujocoPlant(steer_offset='sideways')`), not behind it as the library's "
+        "caster model `wbc.robots.SteerableBase` has them; the steering and drive rates of the "
+        "paper's controller are then consistent with the wheels, and slip comes from dynamics "
+        "(servo lag, inertia, load transfer), not from a geometric mismatch. "
         "The steering controller keeps its own steering angles (it has no input for measured "
         "ones). The plant's arm joints have the LWR's limits, which the paper's formulation "
         "lacks: the IK start has joints 1 and 3 at 221° and 212°, beyond ±170°, so on MuJoCo "

@@ -479,8 +479,8 @@ class MujocoPlant:
             rates = (d.qpos[self._wheel_q] - wheel_q0) / dt
             if self.kind == "steerable":
                 steering = d.qpos[self._steer_q]
-                v_meas[:nb] = self.base.forward(rates, 0.5 * (steering + steer_q0),
-                                                (steering - steer_q0) / dt)
+                v_meas[:nb] = self._steered_odometry(rates, 0.5 * (steering + steer_q0),
+                                                     (steering - steer_q0) / dt)
             else:
                 v_meas[:nb] = self.base.forward(rates)
             if kind == "velocity":
@@ -498,6 +498,23 @@ class MujocoPlant:
         if not self.odometry:
             return PlantStep(q, v, v.copy(), signals, q_measured=q.copy())
         return PlantStep(q, v, v_meas, signals)
+
+    def _steered_odometry(self, drive_rates: np.ndarray, steering: np.ndarray,
+                          steer_rates: np.ndarray) -> np.ndarray:
+        """Base twist ``(v_x, v_y, ω)`` from the steered wheels' encoders: least squares over
+        each wheel's rolling and no-slip rows for its geometry (:meth:`_slip`'s, zero slip)."""
+        c, s = np.cos(steering), np.sin(steering)
+        hx, hy = self._hips[:, 0], self._hips[:, 1]
+        d, r = self.mjcf.offset, float(self.base.radius)
+        rolling = np.column_stack([c, s, hx * s - hy * c])
+        lateral = np.column_stack([-s, c, hx * c + hy * s])
+        if self.steer_offset == "trailing":  # across: n·v_h − (ω + β̇) d = 0
+            lateral[:, 2] -= d
+            rhs = np.concatenate([r * drive_rates, d * steer_rates])
+        else:  # along: e·v_h + (ω + β̇) d = r φ̇
+            rolling[:, 2] += d
+            rhs = np.concatenate([r * drive_rates - d * steer_rates, np.zeros_like(steering)])
+        return np.linalg.lstsq(np.vstack([rolling, lateral]), rhs, rcond=None)[0]
 
     def _base_acceleration(self, acceleration: np.ndarray) -> np.ndarray:
         """The free joint's acceleration (world linear, body angular) of a commanded base
