@@ -1,5 +1,5 @@
 """The ``wbc`` command line: ``wbc list``, ``wbc demo``, ``wbc bench``, ``wbc pink``, ``wbc mink``,
-``wbc placo``, ``wbc fuzz``, ``wbc audit``, ``wbc exactness``, ``wbc reproduce``,
+``wbc placo``, ``wbc fuzz``, ``wbc audit``, ``wbc sweep``, ``wbc exactness``, ``wbc reproduce``,
 ``wbc study NAME``, ``wbc view DIR``, ``wbc play ROBOT``.
 
 Each sub-command forwards its remaining arguments to the ``main(argv)`` of its experiment
@@ -36,6 +36,8 @@ COMMANDS = {
              "fuzz campaign: bad stacks, data, states on every backend"),
     "audit": ("wbc.experiments.campaigns.audit",
               "closed-loop limit audits: every robot, exact backends"),
+    "sweep": ("wbc.experiments.campaigns.sweep", "Monte-Carlo sweep of a paper study: its "
+              "claims over seeds and constants, with their spread (--workers on Dask)"),
     "exactness": ("wbc.experiments.campaigns.exactness", "every backend against an exact referee "
                   "on random, saturating and strict-priority states"),
     "reproduce": ("wbc.experiments.reproduce", "every paper study, bench and peers in one "
@@ -57,7 +59,8 @@ STUDIES = {
 
 def run_study(argv: list[str]) -> int:
     """``wbc study NAME [options]``: one paper study (``wbc study NAME --help`` for options)."""
-    usage = "usage: wbc study NAME [--backend B] [--out DIR] [--quick]"
+    usage = ("usage: wbc study NAME [--backend B] [--out DIR] [--quick] [--plant P] [--seed N] "
+             "[--param KEY=V]")
     if argv and argv[0] in ("-h", "--help"):
         print(f"{usage}\n\nstudies:")
         for name, what in STUDIES.items():

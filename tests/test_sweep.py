@@ -1,0 +1,144 @@
+"""``wbc sweep``: a study's claims over seeds and constants (wbc.experiments.campaigns.sweep).
+
+The aggregation is checked on hand-made claim lists; the sweep itself on the omni study's quick
+runs: the same JSON in this process, on two local Dask workers and after one of them was
+killed mid-sweep; bad arguments are usage errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from wbc.errors import UnknownNameError
+from wbc.experiments.campaigns import sweep
+from wbc.experiments.cli import main
+
+
+def claim(id_, ours, holds):
+    return {"id": id_, "statement": f"claim {id_}", "paper": 1.0, "ours": ours, "holds": holds}
+
+
+def test_aggregate_counts_holds_and_bootstraps_the_median():
+    rng = np.random.default_rng(3)
+    values = rng.normal(2.0, 0.5, 40)
+    seeds = [[claim("a", float(v), bool(v > 1.5)), claim("b", {"x": float(v), "y": "text"},
+                                                           True),
+              claim("c", "words", False)] for v in values]
+    seeds[5] = seeds[5][:2]  # a seed that did not compute claim c
+    a, b, c = sweep.aggregate(seeds)
+    assert a["seeds"] == 40 and a["holds"] == int((values > 1.5).sum())
+    assert a["holds_fraction"] == pytest.approx((values > 1.5).mean())
+    assert a["ours_median"] == pytest.approx(np.median(values))
+    low, high = a["ours_ci95"]
+    assert low < a["ours_median"] < high and high - low < 0.6  # ~ 2·1.96·1.25σ/√n
+    assert sweep.aggregate(seeds)[0]["ours_ci95"] == a["ours_ci95"]  # a fixed generator
+    assert set(b["ours_median"]) == {"x"} and b["holds_fraction"] == 1.0  # numbers only
+    assert c["seeds"] == 39 and c["holds"] == 0 and "ours_median" not in c
+
+
+def test_plan_is_the_product_of_the_grid_times_the_seeds():
+    cases = sweep.plan({"mu": [0.3, 0.5], "speed": [0.2]}, seeds=3, first_seed=4)
+    assert [c["key"] for c in cases] == [f"mu={m},speed=0.2/seed{s}" for m in ("0.3", "0.5")
+                                         for s in (4, 5, 6)]
+    assert cases[3]["params"] == {"mu": 0.5, "speed": 0.2} and cases[3]["seed"] == 4
+    assert [c["key"] for c in sweep.plan({}, 2, 0)] == ["default/seed0", "default/seed1"]
+
+
+def comparable(path) -> dict:
+    """A sweep's JSON without what may differ between runs: timings, the machine, the
+    cluster."""
+    result = json.loads(path.read_text())
+    for key in ("timing", "machine", "cluster"):
+        result.pop(key)
+    return result
+
+
+SWEEP = ["sweep", "omni", "--seeds", "4", "--quick"]
+
+
+def test_a_sweep_gives_the_same_json_wherever_it_runs(tmp_path):
+    pytest.importorskip("distributed")
+    assert main([*SWEEP, "--out", str(tmp_path / "here")]) == 0
+    here = tmp_path / "here" / "sweep_omni" / "sweep_omni.json"
+    result = json.loads(here.read_text())
+    assert result["seeds"] == 4 and result["claims"] and result["figure"] == "sweep_omni.png"
+    for c in result["claims"]:
+        assert 0.0 <= c["holds_fraction"] <= 1.0 and c["seeds"] == 4
+    assert any("ours_ci95" in c for c in result["claims"])
+    # the seeds draw different random elements: some numeric claim varies over them
+    values = result["settings"][0]["values"]
+    assert any(len({json.dumps(v) for v in series}) > 1 for series in values.values())
+    assert main([*SWEEP, "--workers", "2", "--out", str(tmp_path / "two")]) == 0
+    two = tmp_path / "two" / "sweep_omni" / "sweep_omni.json"
+    assert comparable(two) == comparable(here)
+    assert json.loads(two.read_text())["cluster"]["workers"] == 2
+    assert not list((tmp_path / "two").rglob("*.partial.json"))
+
+
+def _children(pid: int) -> list[int]:
+    """Process ids under ``pid`` (Linux /proc)."""
+    out = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    parent = int(f.read().rsplit(")", 1)[1].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+            if parent == pid:
+                out += [int(entry), *_children(int(entry))]
+    return out
+
+
+def test_a_sweep_survives_a_killed_worker(tmp_path):
+    """A worker process is killed (SIGKILL) while the sweep runs: its cases are re-run and the
+    JSON equals the one computed in this process."""
+    pytest.importorskip("distributed")
+    if not os.path.isdir("/proc"):
+        pytest.skip("finding the worker processes needs Linux's /proc")
+    argv = [*SWEEP, "--seeds", "6"]
+    assert main([*argv, "--out", str(tmp_path / "here")]) == 0
+    process = subprocess.Popen([sys.executable, "-m", "wbc.experiments.cli", *argv, "--workers",
+                                "2", "--out", str(tmp_path / "killed")],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    killed = None
+    deadline = time.time() + 120
+    while killed is None and time.time() < deadline and process.poll() is None:
+        # a worker is a spawned Python process under the nanny under the command's process
+        workers = [p for p in _children(process.pid)
+                   if "multiprocessing" in open(f"/proc/{p}/cmdline").read()]
+        if len(workers) >= 2:
+            time.sleep(1.0)  # let the cases start
+            killed = workers[-1]
+            os.kill(killed, signal.SIGKILL)
+        time.sleep(0.2)
+    _, stderr = process.communicate(timeout=300)
+    assert killed is not None, "no worker process was found to kill"
+    assert process.returncode == 0, stderr[-2000:]
+    result = tmp_path / "killed" / "sweep_omni" / "sweep_omni.json"
+    assert comparable(result) == comparable(tmp_path / "here" / "sweep_omni" / "sweep_omni.json")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["sweep", "omni", "--seeds", "0"], "--seeds must be >= 1"),
+    (["sweep", "omni", "--param", "no_such_key=1"], "unknown parameter 'no_such_key'"),
+    (["sweep", "omni", "--param", "mu=a,b"], "must be numbers"),
+    (["sweep", "omni", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "not allowed"),
+    (["sweep", "nosuch"], "invalid choice"),
+])
+def test_bad_sweep_arguments_are_usage_errors(argv, message, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_an_unknown_case_key_is_refused():
+    with pytest.raises(UnknownNameError, match="default/seed0"):
+        sweep.sweep("omni", 2, quick=True, only="nosuch/seed9", progress=False)
