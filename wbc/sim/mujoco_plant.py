@@ -316,6 +316,8 @@ class MujocoPlant:
         mj.mj_resetData(m, d)
         mj.mj_forward(m, d)
         self._substeps, self._dt = substeps, dt
+        self._rows = (np.empty((substeps, m.nq)), np.empty((substeps, m.nv)),
+                      np.empty((substeps, m.nv)))
         self._place(q0)
         self._theta = self._theta_wrapped = float(q0[2]) if self.base is not None else 0.0
         self._hold_q = q0[self.nq - len(self._arm_q):].copy()
@@ -407,10 +409,6 @@ class MujocoPlant:
         arm_q0 = d.qpos[self._arm_q].copy()
         wheel_q0 = d.qpos[self._wheel_q].copy()
         steer_q0 = d.qpos[self._steer_q].copy()
-        saturated = np.zeros(self._sat_v.size)
-        wheel_torque = np.zeros(n_wheels)
-        slip = np.zeros(n_wheels)
-        lateral = 0.0
         if kind != "acceleration":
             # the arm servos' gravity and Coriolis feedforward (joint torques), held over the
             # period
@@ -421,7 +419,10 @@ class MujocoPlant:
         elif kind == "acceleration":
             base_start = self._v_base_target
             arm_acc = command[nb:]
+            # the arm's and the base's commanded accelerations (wheels, rollers and springs
+            # taken unaccelerated), for the arm's inverse dynamics
             qacc = np.zeros(m.nv)
+            qacc[self._arm_v] = arm_acc
             if self.base is not None:
                 qacc[:6] = self._base_acceleration(command[:nb])
             tau = np.zeros(m.nv)
@@ -439,8 +440,21 @@ class MujocoPlant:
         else:
             d.ctrl[self._wheel_u] = command[:n_wheels][self._powered]
             d.ctrl[self._arm_u] = command[n_wheels:] if command.size > n_wheels else 0.0
+        # the wheel (and steer) servos' targets: per sub-step for a steered base (its inverse
+        # kinematics depends on the steering angles), else all at once
+        steered = self.kind == "steerable" and kind in ("velocity", "acceleration")
+        drives = None
+        if self.base is not None and kind in ("velocity", "acceleration") and not steered:
+            ramp = (np.arange(1, self._substeps + 1) * h if kind == "acceleration"
+                    else np.zeros(self._substeps))
+            targets = (base_start if kind == "acceleration" else base_target) + np.outer(
+                ramp, command[:nb] if kind == "acceleration" else np.zeros(nb))
+            drives = targets @ np.asarray(self.base.jacobian, dtype=float).T[:, self._powered]
+        qpos_rows, qvel_rows, force_rows = self._rows
         for k in range(self._substeps):
-            if self.base is not None and kind in ("velocity", "acceleration"):
+            if drives is not None:
+                d.ctrl[self._wheel_u] = drives[k]
+            elif steered:
                 if kind == "acceleration":
                     base_target = base_start + command[:nb] * (k + 1) * h
                 drive, steer = self._wheel_rates(base_target)
@@ -448,22 +462,19 @@ class MujocoPlant:
                 d.ctrl[self._steer_u] = steer
             if kind == "acceleration":
                 mj.mj_step1(m, d)
-                # the arm's and the base's commanded accelerations (wheels, rollers and springs
-                # taken unaccelerated)
-                qacc[self._arm_v] = arm_acc
                 d.qacc[:] = qacc
                 mj.mj_rne(m, d, 1, tau)
-                d.ctrl[self._arm_u] = np.clip(tau[self._arm_v] + damping * d.qvel[self._arm_v],
-                                              -limit, limit)
+                torque = tau[self._arm_v] + damping * d.qvel[self._arm_v]
+                d.ctrl[self._arm_u] = np.minimum(np.maximum(torque, -limit, out=torque), limit,
+                                                 out=torque)
                 mj.mj_step2(m, d)
             else:
                 mj.mj_step(m, d)
-            saturated += np.abs(d.qfrc_actuator[self._sat_v]) >= self._sat_limit
-            wheel_torque += d.qfrc_actuator[self._wheel_v]
-            if self.base is not None:
-                s, lat = self._slip()
-                slip += s
-                lateral += lat
+            # recorded per sub-step, evaluated after the period (vectorised)
+            qpos_rows[k] = d.qpos
+            qvel_rows[k] = d.qvel
+            force_rows[k] = d.qfrc_actuator
+        saturated = (np.abs(force_rows[:, self._sat_v]) >= self._sat_limit).mean(axis=0)
         if not all_finite(d.qpos) or sum(d.warning[i].number for i in self._unstable) > warned:
             raise NonFiniteError(f"MujocoPlant: the simulation diverged at t = {d.time:.4g} s "
                                  "(MuJoCo found NaN, inf or huge values in its state and reset "
@@ -474,7 +485,7 @@ class MujocoPlant:
         dt = self._dt
         v_meas = np.empty(self.nv)
         v_meas[nb:] = (d.qpos[self._arm_q] - arm_q0) / dt
-        signals: dict = {"saturation": saturated / self._substeps}
+        signals: dict = {"saturation": saturated}
         if self.base is not None:
             rates = (d.qpos[self._wheel_q] - wheel_q0) / dt
             if self.kind == "steerable":
@@ -485,11 +496,12 @@ class MujocoPlant:
                 v_meas[:nb] = self.base.forward(rates)
             if kind == "velocity":
                 self._v_base_target = command[:nb].copy()
-            signals["wheel_torque"] = wheel_torque / self._substeps
-            signals["wheel_slip"] = slip / self._substeps
-            signals["slip_distance"] = slip * h
+            slips, lateral = self._slips(qpos_rows, qvel_rows)
+            signals["wheel_torque"] = force_rows[:, self._wheel_v].mean(axis=0)
+            signals["wheel_slip"] = slips.mean(axis=0)
+            signals["slip_distance"] = slips.sum(axis=0) * h
             if self.kind == "differential":
-                signals["lateral_slip"] = lateral / self._substeps
+                signals["lateral_slip"] = float(lateral.mean())
             normal, utilisation = self._contacts(n_wheels)
             signals["normal_forces"] = normal
             signals["friction_utilisation"] = utilisation
@@ -528,36 +540,40 @@ class MujocoPlant:
         return np.array([c * a[0] - s * a[1] - omega * vy, s * a[0] + c * a[1] + omega * vx,
                          0.0, 0.0, 0.0, a[2]])
 
-    def _slip(self) -> tuple[np.ndarray, float]:
-        """Per wheel slip speed [m/s] at the contact now, and the base's lateral speed."""
-        d = self.data
-        yaw = self._yaw()
-        c, s = math.cos(yaw), math.sin(yaw)
-        vx, vy = c * d.qvel[0] + s * d.qvel[1], -s * d.qvel[0] + c * d.qvel[1]
-        w, x, y, z = d.qpos[3:7]
-        omega = ((2.0 * (x * z - w * y)) * d.qvel[3] + (2.0 * (y * z + w * x)) * d.qvel[4]
-                 + (1.0 - 2.0 * (x * x + y * y)) * d.qvel[5])
+    def _slips(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per sub-step (the rows of MuJoCo's ``qpos`` and ``qvel``) and wheel the slip speed
+        [m/s] at the contact, ``(n, n_wheels)``, and the base's lateral speed [m/s], ``(n,)``."""
+        w, x, y, z = qpos[:, 3], qpos[:, 4], qpos[:, 5], qpos[:, 6]
+        yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        c, s = np.cos(yaw), np.sin(yaw)
+        vx = c * qvel[:, 0] + s * qvel[:, 1]
+        vy = -s * qvel[:, 0] + c * qvel[:, 1]
+        # world z component of the body-frame angular velocity: third row of R(quat)
+        omega = ((2.0 * (x * z - w * y)) * qvel[:, 3] + (2.0 * (y * z + w * x)) * qvel[:, 4]
+                 + (1.0 - 2.0 * (x * x + y * y)) * qvel[:, 5])
         r = float(self.base.radius)
-        rates = d.qvel[self._wheel_v]
+        rates = qvel[:, self._wheel_v]
         if self.kind == "steerable":
             # the contact's slip from the wheel's own geometry: e the rolling direction, n the
             # axle's; the hip moves at v_h; a trailing contact (h − d e) also moves across by
             # −(ω + β̇) d, a sideways one (h − d n) along by +(ω + β̇) d
-            beta = d.qpos[self._steer_q]
-            c, s = np.cos(beta), np.sin(beta)
+            beta = qpos[:, self._steer_q]
+            cb, sb = np.cos(beta), np.sin(beta)
             hips = self._hips
-            hx, hy = vx - omega * hips[:, 1], vy + omega * hips[:, 0]
-            turn = (omega + d.qvel[self._steer_v]) * self.mjcf.offset
-            along = c * hx + s * hy - r * rates
-            across = -s * hx + c * hy
+            hx = vx[:, None] - omega[:, None] * hips[:, 1]
+            hy = vy[:, None] + omega[:, None] * hips[:, 0]
+            turn = (omega[:, None] + qvel[:, self._steer_v]) * self.mjcf.offset
+            along = cb * hx + sb * hy - r * rates
+            across = -sb * hx + cb * hy
             if self.steer_offset == "trailing":
                 across = across - turn
             else:
                 along = along + turn
-            return np.hypot(along, across), 0.0
+            return np.hypot(along, across), np.zeros(len(qpos))
         J = np.asarray(self.base.jacobian, dtype=float)
-        coordinates = np.array([vx, omega]) if self.nv_base == 2 else np.array([vx, vy, omega])
-        return np.abs(r * (J @ coordinates - rates)), abs(vy)
+        coordinates = (np.column_stack([vx, omega]) if self.nv_base == 2
+                       else np.column_stack([vx, vy, omega]))
+        return np.abs(r * (coordinates @ J.T - rates)), np.abs(vy)
 
     def _contacts(self, n_wheels: int) -> tuple[np.ndarray, np.ndarray]:
         mj, m, d = self._mujoco, self.model, self.data
