@@ -63,6 +63,7 @@ from wbc.solvers import available_backends
 from wbc.viz.record import Recording
 
 from .study import (
+    DOCUMENTED,
     Claim,
     StudyOptions,
     StudyResult,
@@ -111,8 +112,6 @@ RANDOM_ELEMENTS = (
     "between experiments). On MuJoCo the gain errors and the noise perturb the force "
     "controllers' commanded torques; position control there runs on the plant's own servos, "
     "without them.")
-#: the documented run's options (the kinematic plant, the fixed seeds, no overrides)
-DOCUMENTED = StudyOptions()
 #: scenario -> (unit direction in the world, distance [m]); the paper's Fig. 6 and Fig. 7.
 SCENARIOS = {"y": (np.array([0.0, 1.0]), 0.40),
              "diagonal": (np.array([1.0, 1.0]) / math.sqrt(2.0), 0.40 * math.sqrt(2.0))}

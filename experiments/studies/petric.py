@@ -85,6 +85,7 @@ from wbc.solvers import available_backends
 from wbc.viz.record import Recording
 
 from .study import (
+    DOCUMENTED,
     Claim,
     StudyOptions,
     StudyResult,
@@ -598,12 +599,11 @@ def _figures(out_dir: Path, slices: dict, runs: dict, quick: bool) -> list[str]:
 
 # ----------------------------------------------------------------------------- the study
 def run(backend: str, out_dir: Path, quick: bool,
-        options: StudyOptions | None = None) -> StudyResult:
+        options: StudyOptions = DOCUMENTED) -> StudyResult:
     """The study (see the module docstring); ``quick`` runs every scenario at 0.4× its
     duration (faster trajectories) and times the backends on fewer ticks; ``options``: the
     plant, a seeded re-staging, :data:`PARAMETERS_SWEPT` overrides, ``main_only`` (default
     ``StudyOptions()``: the documented run on the kinematic plant)."""
-    options = StudyOptions() if options is None else options
     options.check(PARAMETERS_SWEPT)
     robot = load(ROBOT)
     scale = 0.4 if quick else 1.0

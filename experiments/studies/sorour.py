@@ -48,6 +48,7 @@ from wbc.tasks.rpy_pose import pose_error
 from wbc.viz.record import Recording
 
 from .study import (
+    DOCUMENTED,
     Claim,
     StudyOptions,
     StudyResult,
@@ -76,8 +77,6 @@ PARAMETERS_SWEPT = {
     "Kp": (PARAMETERS["Kp"], "K_p of the drive controller (Table I) [1/s]"),
 }
 
-#: the documented single run on the kinematic plant
-DEFAULT_OPTIONS = StudyOptions()
 
 #: half-widths of the uniform re-staging a seed draws (fixed before any seeded run)
 START_JITTER = (0.02, math.radians(2.0))  # base start x, y [m]; heading [rad]
@@ -222,7 +221,7 @@ def footprint_area(robot, q) -> float:
 
 
 def simulate(robot, variant: str, backend: str, q0: np.ndarray, seconds: float,
-             options: StudyOptions = DEFAULT_OPTIONS, poses=POSES):
+             options: StudyOptions = DOCUMENTED, poses=POSES):
     """One run of ``variant`` from ``q0`` for ``seconds`` [s] towards the schedule ``poses`` on
     the plant of ``options`` (the steering constants from its ``params``)."""
     controller = SorourController(robot, variant, backend)
@@ -512,7 +511,7 @@ def plant_summary(runs: dict) -> str:
 
 
 def run(backend: str, out_dir: Path, quick: bool,
-        options: StudyOptions = DEFAULT_OPTIONS) -> StudyResult:
+        options: StudyOptions = DOCUMENTED) -> StudyResult:
     options.check(PARAMETERS_SWEPT)
     parameters = {**PARAMETERS, **{k: options.value(k, PARAMETERS_SWEPT)
                                    for k in PARAMETERS_SWEPT}}

@@ -5,8 +5,8 @@ A study (``experiments/studies/<name>.py``) reruns a paper's experiments in simu
 
 * ``run(backend: str, out_dir: pathlib.Path, quick: bool, options: StudyOptions) ->
   StudyResult`` (``out_dir`` is the study's own folder, ``DIR/<name>``, where it saves its
-  figures; ``options`` default ``StudyOptions()``, the single documented run on the
-  kinematic plant);
+  figures; ``options`` default :data:`DOCUMENTED`, the single documented run on the kinematic
+  plant);
 * ``PARAMETERS_SWEPT``: ``KEY -> (default, description with units)``, the constants of its setup
   ``wbc sweep NAME --param KEY=V1,V2`` and ``wbc study NAME --param KEY=V`` may change (a key not
   listed is refused by :meth:`StudyOptions.check`);
@@ -62,8 +62,8 @@ import numpy as np
 
 from ..machine import describe_machine
 
-__all__ = ["PLANTS", "Claim", "StudyOptions", "StudyResult", "make_plant", "parse_params",
-           "plant_timing", "save_figure", "study_main", "timing_summary"]
+__all__ = ["DOCUMENTED", "PLANTS", "Claim", "StudyOptions", "StudyResult", "make_plant",
+           "parse_params", "plant_timing", "save_figure", "study_main", "timing_summary"]
 
 #: the plants a study runs on (``--plant``)
 PLANTS = ("kinematic", "mujoco")
@@ -114,6 +114,10 @@ class StudyOptions:
     def value(self, key: str, swept: dict) -> float:
         """The value of ``key``: the override, else the study's default (``swept[key][0]``)."""
         return float(self.params.get(key, swept[key][0]))
+
+
+#: the documented single run on the kinematic plant (every study's ``run`` default)
+DOCUMENTED = StudyOptions()
 
 
 def make_plant(robot, options: StudyOptions, **kwargs):
