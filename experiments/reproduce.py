@@ -2,19 +2,24 @@
 report (``OUT/REPORT.md``, figures beside it).
 
 Steps, each run in this process through its own command-line entry point with its output
-captured in ``OUT/logs/<step>.log``: the four paper studies (``wbc study NAME``), ``wbc bench``
+captured in ``OUT/logs/<step>.log``: the four paper studies on the kinematic plant (``wbc study
+NAME``, into ``OUT/NAME``) and on MuJoCo (``--plant mujoco``, into ``OUT/mujoco/NAME``; skipped
+with its install hint without the ``mujoco`` package), a Monte-Carlo sweep of each study
+(``wbc sweep NAME --seeds`` :data:`SWEEP_SEEDS`, into ``OUT/sweeps``, on a local Dask cluster of
+one worker per core when ``distributed`` is installed, else in this process), ``wbc bench``
 and the head-to-heads with the peers (``wbc pink``, ``wbc mink``, ``wbc placo``; a peer that is
 not installed is reported as skipped with its install hint). A step that fails does not stop the
 others: the report says what failed and why (the log's last lines). ``--quick`` shortens every
 step (short horizons, few ticks, one backend for the peers) so that the whole command runs in
 about a minute, for CI; its timings are not meant to be read.
 
-The report: an opening summary (claims reproduced per paper, failures), one section per paper
-with its claims table and figures, the timing tables of ``wbc bench``, the peer table, the
-machine. Each paper's section also shows a strip of the robot at four instants of the study's
-main run (:data:`MAIN_RUNS`), rendered from the study's replay record on full runs: by the 3-D
-viewer through headless Chromium (:func:`wbc.viz.strip.render_strip`) where the ``[viz]``
-extra and a Chromium are installed, otherwise by matplotlib offline
+The report: an opening summary (claims reproduced per paper and plant, failures), one section per
+paper with its claims table — each claim on both plants side by side (same ids) and "holds in k of
+N seeds" with the median's interval beside the single run — and figures, the timing tables of ``wbc
+bench``, the peer table, the machine. Each paper's section also shows a strip of the robot at four
+instants of the study's main run (:data:`MAIN_RUNS`), rendered from the study's replay record on
+full runs: by the 3-D viewer through headless Chromium (:func:`wbc.viz.strip.render_strip`) where
+the ``[viz]`` extra and a Chromium are installed, otherwise by matplotlib offline
 (:func:`wbc.viz.strip_offline.render_strip_offline`); the report says which.
 """
 
@@ -33,6 +38,7 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
+from .campaigns.sweep import interval
 from .machine import describe_machine
 from .progress import report_progress
 
@@ -43,6 +49,9 @@ PAPERS = {"sorour": "Sorour, Cherubini, Fraisse — steerable wheeled mobile man
 #: the run each paper's strip shows (a key of the study's ``<name>_replay.npz``)
 MAIN_RUNS = {"sorour": "table_ii/compensated", "petric": "sine_large/whole_body",
              "omni": "diagonal/proportional", "xing": "circle_r025/amp_qp"}
+#: seeds of each study's sweep (``--quick``: :data:`SWEEP_SEEDS_QUICK`, the studies' quick mode)
+SWEEP_SEEDS = 16
+SWEEP_SEEDS_QUICK = 2
 PEERS = {"pink": ("wbc.experiments.peers.vs_pink", "pink", "pip install 'wbc[pink]'"),
          "mink": ("wbc.experiments.peers.vs_mink", "mink", "pip install 'wbc[mink]'"),
          "placo": ("wbc.experiments.peers.vs_placo", "placo", "pip install 'wbc[placo]'")}
@@ -64,21 +73,44 @@ class Step:
 
 def plan(out: Path, quick: bool) -> list[Step]:
     """The steps of a full (or ``quick``) reproduction writing into ``out``."""
+    short = ["--quick"] if quick else []
     steps = [Step(f"study {name}", f"wbc.experiments.studies.{name}",
-                  ["--out", str(out), *(["--quick"] if quick else [])]) for name in PAPERS]
+                  ["--out", str(out), *short]) for name in PAPERS]
+    steps += [Step(f"study {name} (mujoco)", f"wbc.experiments.studies.{name}",
+                   ["--out", str(out / "mujoco"), "--plant", "mujoco", *short], "mujoco",
+                   "pip install 'wbc[mujoco]'") for name in PAPERS]
+    workers = sweep_workers()
+    steps += [Step(f"sweep {name}", "wbc.experiments.campaigns.sweep",
+                   [name, "--seeds", str(SWEEP_SEEDS_QUICK if quick else SWEEP_SEEDS),
+                    "--out", str(out / "sweeps"), *short,
+                    *(["--workers", str(workers)] if workers else [])]) for name in PAPERS]
     bench = (["--robots", "mecanum_gen3", "--stacks", "one_level", "three_levels", "--ticks",
               "60", "--warmup", "5", "--scaling-ticks", "20", "--scaling-joints", "7", "30"]
-             # 600 ticks per cell and scenario (three scenarios, every tick also solved by two
-             # certified referees): ≈ 5 min on 2 cores; 3000 (issue #17's protocol, one
-             # scenario, no referees) would take ≈ 25 min now
-             if quick else ["--ticks", "600", "--scaling-ticks", "1000"])
+             # 200 ticks per cell and scenario (three scenarios, every tick also solved by two
+             # certified referees): ≈ 1.5 min on 2 cores (600 took 4.7 min, which with the
+             # studies on MuJoCo and their sweeps put the report over its 10 minutes); `wbc
+             # bench` alone keeps its own defaults, and 3000 (issue #17's protocol, one
+             # scenario, no referees) would take ≈ 25 min
+             if quick else ["--ticks", "200", "--scaling-ticks", "500"])
     steps.append(Step("bench", "wbc.experiments.benchmarks.solver_timing",
                       [*bench, "--out", str(out / "bench")]))
     for peer, (module, package, hint) in PEERS.items():
-        ticks = ["--ticks", "150", "--backends", "daqp"] if quick else ["--ticks", "3000"]
+        # 1500 ticks per backend (3000 before the MuJoCo studies and the sweeps joined)
+        ticks = ["--ticks", "150", "--backends", "daqp"] if quick else ["--ticks", "1500"]
         steps.append(Step(peer, module, [*ticks, "--out", str(out / f"vs_{peer}")], package,
                           hint))
     return steps
+
+
+def sweep_workers() -> int | None:
+    """Worker processes of the sweeps: one per core when dask's ``distributed`` is installed
+    (``None``, in this process, otherwise)."""
+    import os
+
+    if importlib.util.find_spec("distributed") is None:
+        return None
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+               else os.cpu_count() or 1)
 
 
 def run_step(step: Step, log_dir: Path) -> None:
@@ -118,20 +150,68 @@ def _read_json(path: Path) -> dict | None:
         return None
 
 
-def _paper_section(name: str, out: Path, step: Step) -> tuple[list[str], tuple[int, int] | None]:
+def _paper_section(name: str, out: Path, steps: dict[str, Step]
+                   ) -> tuple[list[str], list[str]]:
+    """A paper's section and its summary line: its claims on the kinematic plant, on MuJoCo
+    (``OUT/mujoco/NAME``) and over the sweep's seeds (``OUT/sweeps/sweep_NAME``), side by side
+    by claim id."""
+    step = steps[f"study {name}"]
     lines = [f"## {PAPERS[name]} (`wbc study {name}`)", ""]
     data = _read_json(out / name / f"{name}.json")
     if step.status != "ok" or data is None:
         lines += [f"**Not reproduced: the study failed** — {step.reason or 'no JSON written'} "
                   f"(log: `logs/{step.name.replace(' ', '_')}.log`).", ""]
-        return lines, None
+        return lines, [f"- **{name}**: study failed"]
+    physics_step = steps.get(f"study {name} (mujoco)")
+    physics = _read_json(out / "mujoco" / name / f"{name}.json") \
+        if physics_step is not None and physics_step.status == "ok" else None
+    sweep_step = steps.get(f"sweep {name}")
+    swept = _read_json(out / "sweeps" / f"sweep_{name}" / f"sweep_{name}.json") \
+        if sweep_step is not None and sweep_step.status in ("ok", "failed") else None
     claims = data["claims"]
     held = sum(bool(c["holds"]) for c in claims)
-    lines += [f"{held} of {len(claims)} claims reproduced ({step.seconds:.0f} s).", "",
-              "| claim | paper | ours | holds | note |", "|---|---|---|:---:|---|"]
+    summary = f"- **{name}**: {held} of {len(claims)} claims reproduced (kinematic plant)"
+    lines.append(f"{held} of {len(claims)} claims reproduced on the kinematic plant "
+                 f"({step.seconds:.0f} s).")
+    by_id_physics = {c["id"]: c for c in (physics or {}).get("claims", [])}
+    by_id_sweep = {c["id"]: c for c in (swept or {}).get("claims", [])}
+    if physics is not None and physics_step is not None:
+        held_physics = sum(bool(c["holds"]) for c in physics["claims"])
+        summary += f"; {held_physics} of {len(physics['claims'])} on MuJoCo"
+        lines.append(f"On MuJoCo: {held_physics} of {len(physics['claims'])} "
+                     f"({physics_step.seconds:.0f} s; {_plant_line(physics)}).")
+    else:
+        lines.append("On MuJoCo: not run — " + (physics_step.reason if physics_step else
+                                                "not part of this run") + ".")
+    if swept is not None:
+        fragile = [c["id"] for c in swept["claims"] if c["holds_fraction"] < 0.95]
+        summary += (f"; over {swept['seeds']} seeds, {len(fragile)} claim(s) hold in fewer "
+                    "than 95 % of them" + (f" ({', '.join(fragile)})" if fragile else ""))
+        lines.append(f"Sweep: {swept['seeds']} seeds ({swept['first_seed']}…"
+                     f"{swept['first_seed'] + swept['seeds'] - 1}; `wbc sweep {name}`), "
+                     f"{swept['timing']['wall_s']:.0f} s" + (
+                         f"; **{len(swept['defects'])} case(s) failed**"
+                         if swept.get("defects") else "") + ".")
+    else:
+        lines.append("Sweep: not run — " + (sweep_step.reason if sweep_step else
+                                            "not part of this run") + ".")
+    lines += ["", "| claim | paper | ours (kinematic) | holds | ours (MuJoCo) | holds | "
+              "holds in k of N seeds | median [95 % interval] over the seeds | note |",
+              "|---|---|---|:---:|---|:---:|---:|---|---|"]
     for c in claims:
-        lines.append(f"| {c['statement']} | {_cell(c['paper'])} | {_cell(c['ours'])} | "
-                     f"{'yes' if c['holds'] else '**no**'} | {c.get('note', '')} |")
+        p = by_id_physics.get(c["id"])
+        w = by_id_sweep.get(c["id"])
+        physics_cells = (f"{_cell(p['ours'])} | {'yes' if p['holds'] else '**no**'}"
+                         if p else "— | —")
+        if w:
+            seeds = f"{w['holds']} of {w['seeds']}" + (
+                "" if w["holds_fraction"] >= 0.95 else " (**< 95 %**)")
+            spread = interval(w)
+        else:
+            seeds, spread = "—", "—"
+        lines.append(f"| {c['statement']} (`{c['id']}`) | {_cell(c['paper'])} | "
+                     f"{_cell(c['ours'])} | {'yes' if c['holds'] else '**no**'} | "
+                     f"{physics_cells} | {seeds} | {spread} | {c.get('note', '')} |")
     timing = data.get("timing") or {}
     if timing:
         lines += ["", "| backend | tick median [µs] | tick p95 [µs] |", "|---|---:|---:|"]
@@ -140,13 +220,24 @@ def _paper_section(name: str, out: Path, step: Step) -> tuple[list[str], tuple[i
                          f"{1e6 * t['tick_p95_s']:.1f} |")
     for figure in data.get("figures", [])[:3]:
         lines += ["", f"![{figure}]({name}/{figure})"]
+    if swept is not None and swept.get("figure"):
+        lines += ["", f"![{swept['figure']}](sweeps/sweep_{name}/{swept['figure']})"]
     strip = out / name / f"{name}_strip.png"
     if strip.exists():
         lines += ["", f"The robot in `{MAIN_RUNS[name]}` (`wbc view {out} --run "
                   f"{name}/{MAIN_RUNS[name]}` replays it):", "",
                   f"![{strip.name}]({name}/{strip.name})"]
     lines.append("")
-    return lines, (held, len(claims))
+    return lines, [summary]
+
+
+def _plant_line(data: dict) -> str:
+    """The plant's step time per control period from a study JSON's ``plant_timing``."""
+    timing = data.get("plant_timing") or {}
+    if "step_median_s" not in timing:
+        return "no plant step recorded"
+    return (f"MuJoCo step per control period median {1e3 * timing['step_median_s']:.2f} ms "
+            f"over {timing['steps']} periods")
 
 
 def render_strips(out: Path, quick: bool) -> str:
@@ -250,10 +341,9 @@ def write_report(out: Path, steps: list[Step], quick: bool, strips: str = "") ->
                                       reason="not part of this run"))
     sections, summary = [], []
     for name in PAPERS:
-        lines, counts = _paper_section(name, out, by_name[f"study {name}"])
+        lines, line = _paper_section(name, out, by_name)
         sections += lines
-        summary.append(f"- **{name}**: " + (f"{counts[0]} of {counts[1]} claims reproduced"
-                                            if counts else "study failed"))
+        summary += line
     bench = out / "bench" / "solver_timing.md"
     sections += ["## Solver timing (`wbc bench`)", ""]
     if by_name["bench"].status == "ok" and bench.exists():

@@ -16,8 +16,18 @@ def test_reproduce_quick_writes_the_report(tmp_path):
     logs = {p.name: p.read_text()[-2000:] for p in (tmp_path / "logs").iterdir()}
     assert code == 0, f"a step failed:\n{report[:3000]}\n{logs}"
     for name in reproduce.PAPERS:
-        assert_study_contract(json.loads((tmp_path / name / f"{name}.json").read_text()))
+        kinematic = json.loads((tmp_path / name / f"{name}.json").read_text())
+        assert_study_contract(kinematic)
         assert f"`wbc study {name}`" in report
+        # the same study on MuJoCo (same claim ids) and its sweep, side by side in the report
+        physics = json.loads((tmp_path / "mujoco" / name / f"{name}.json").read_text())
+        assert physics["plant"] == "mujoco" and kinematic["plant"] == "kinematic"
+        assert [c["id"] for c in physics["claims"]] == [c["id"] for c in kinematic["claims"]]
+        swept = json.loads((tmp_path / "sweeps" / f"sweep_{name}" /
+                            f"sweep_{name}.json").read_text())
+        assert swept["seeds"] == reproduce.SWEEP_SEEDS_QUICK and swept["claims"]
+        assert {c["id"] for c in swept["claims"]} <= {c["id"] for c in kinematic["claims"]}
+    assert "ours (MuJoCo)" in report and "holds in k of N seeds" in report
     for figure in (tmp_path / "xing").glob("*.png"):
         assert figure.stat().st_size > 0
     assert json.loads((tmp_path / "bench" / "solver_timing.json").read_text())

@@ -633,11 +633,13 @@ def run(backend: str, out_dir: Path, quick: bool,
     loops = eq = None
     if not options.main_only:
         timing_seconds = 2.0 if quick else 6.0
+        # the controller's tick does not depend on the plant: timed on the kinematic one
+        kinematic = replace(options, plant="kinematic")
         for name in available_backends():
             try:
                 s, _ = simulate(robot, amp_controller(robot, position, name, jit=jit),
                                 circle(x0, radius_large, rotation0), timing_seconds, position,
-                                start, options, record=False)
+                                start, kinematic, record=False)
             except Exception as error:  # a backend that cannot run the cascade at all
                 failures.append(f"timing on {name}: {type(error).__name__}: {error}")
                 continue
