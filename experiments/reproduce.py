@@ -86,12 +86,14 @@ def plan(out: Path, quick: bool) -> list[Step]:
                     *(["--workers", str(workers)] if workers else [])]) for name in PAPERS]
     bench = (["--robots", "mecanum_gen3", "--stacks", "one_level", "three_levels", "--ticks",
               "60", "--warmup", "5", "--scaling-ticks", "20", "--scaling-joints", "7", "30"]
-             # 200 ticks per cell and scenario (three scenarios, every tick also solved by two
-             # certified referees): ≈ 1.5 min on 2 cores (600 took 4.7 min, which with the
+             # 100 ticks per cell and scenario after 20 warm-up ones (three scenarios, every
+             # tick also solved by two certified referees) and the scaling sweep up to 50
+             # joints: ≈ 2 min on 2 cores (600 ticks took 4.7 min, 200 3.3 min, which with the
              # studies on MuJoCo and their sweeps put the report over its 10 minutes); `wbc
              # bench` alone keeps its own defaults, and 3000 (issue #17's protocol, one
              # scenario, no referees) would take ≈ 25 min
-             if quick else ["--ticks", "200", "--scaling-ticks", "500"])
+             if quick else ["--ticks", "100", "--warmup", "20", "--scaling-ticks", "300",
+                            "--scaling-joints", "7", "15", "30", "50"])
     steps.append(Step("bench", "wbc.experiments.benchmarks.solver_timing",
                       [*bench, "--out", str(out / "bench")]))
     for peer, (module, package, hint) in PEERS.items():

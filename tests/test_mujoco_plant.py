@@ -363,3 +363,18 @@ def test_wheel_servo_targets_integrate_or_start_at_the_present_angle(targets):
     assert not np.allclose(d.act[act] - d.qpos[adr], 0.0, atol=1e-4)  # the wheels lag
     with pytest.raises(InvalidValueError, match="wheel_targets"):
         MujocoPlant(robot, wheel_targets="absolute")
+
+
+def test_a_chassis_inertia_short_of_the_triangle_inequality_is_lifted_to_a_physical_one():
+    # a thin disc's C = A + B less rim masses can leave A + B < C, which MuJoCo refuses; the two
+    # smaller principal moments are raised by half the shortfall each, in the principal axes
+    rotation = np.linalg.qr(np.random.default_rng(0).normal(size=(3, 3)))[0]
+    short = rotation @ np.diag([0.10, 0.095, 0.304]) @ rotation.T
+    lifted = mjcf._physical(short)
+    moments = np.linalg.eigvalsh(lifted)
+    assert moments[0] + moments[1] == pytest.approx(moments[2], abs=1e-12)
+    assert moments == pytest.approx([0.1495, 0.1545, 0.304])
+    assert np.allclose(rotation.T @ lifted @ rotation,
+                       np.diag([0.1545, 0.1495, 0.304]))  # the same principal axes
+    valid = rotation @ np.diag([0.2, 0.15, 0.3]) @ rotation.T
+    assert np.array_equal(mjcf._physical(valid), valid)

@@ -25,8 +25,9 @@ The base (planar robots: ``robot.root == "planar"``)
     mounting plane 0.30 m up, see ``wbc.robots.catalogue``). Its inertia is the base joint's of
     the pinocchio model (the base body and the arm's fixed root link) minus the wheel
     assemblies, which are separate bodies: the base model's mass is the whole platform's, wheels
-    included (as the omni paper's 15 kg). Wheel data: :data:`WHEELS` (mass, inertia, roller
-    count, torque limit, each with where it comes from).
+    included (as the omni paper's 15 kg); where that difference is not a physical inertia its
+    principal moments are lifted to one (:func:`_physical`). Wheel data: :data:`WHEELS`
+    (mass, inertia, roller count, torque limit, each with where it comes from).
 
     * differential (``robot.base.separation``): two drive wheels on the axle through the base
       origin, and PMB2's four casters as free balls (ball joints) of 0.025 m radius at its
@@ -326,6 +327,22 @@ def _inertial(body: ET.Element, mass: float, com, inertia) -> None:
     ET.SubElement(body, "inertial", pos=_fmt(com), mass=f"{mass:.12g}",
                   fullinertia=_fmt([inertia[0, 0], inertia[1, 1], inertia[2, 2],
                                     inertia[0, 1], inertia[0, 2], inertia[1, 2]]))
+
+
+def _physical(inertia: np.ndarray) -> np.ndarray:
+    """``inertia`` [kg m²] with its principal moments lifted, where needed, to satisfy the
+    triangle inequality ``A + B >= C`` of a real body (MuJoCo refuses others). A chassis is the
+    base model's platform minus its wheel assemblies; the catalogue's platforms are thin discs
+    (``C ≈ A + B``), so taking the wheels at the rim out can leave ``A + B`` short of ``C``
+    (omni4_arm6 with pinocchio 3.8's model of the arm's root link: A + B = 0.200, C = 0.304
+    kg m²). The two smaller moments are raised by half the shortfall each — the least change
+    in the sum that makes the body physical; nothing changes for a valid inertia."""
+    moments, axes = np.linalg.eigh(0.5 * (inertia + inertia.T))
+    shortfall = moments[2] - moments[0] - moments[1]
+    if shortfall <= 0:
+        return inertia
+    moments[:2] += 0.5 * shortfall
+    return axes @ np.diag(moments) @ axes.T
 
 
 def _arm_torques(robot, model, first: int) -> np.ndarray:
@@ -639,6 +656,7 @@ def _wheels(robot, kind: str, command: str, base_body: ET.Element, actuators: ET
     if mass <= 0 or np.linalg.eigvalsh(inertia).min() <= 0:
         raise WbcError(f"MujocoPlant: the base's mass {platform[0, 0]:.3g} kg does not leave a "
                        "positive chassis once its wheels are taken out")
+    inertia = _physical(inertia)
     # the chassis is the base body itself: its inertial element goes first (MJCF's order)
     _inertial(base_body, mass, com, inertia)
     element = base_body.findall("inertial")[-1]
