@@ -181,7 +181,8 @@ def _paper_section(name: str, out: Path, steps: dict[str, Step]
         held_physics = sum(bool(c["holds"]) for c in physics["claims"])
         summary += f"; {held_physics} of {len(physics['claims'])} on MuJoCo"
         lines.append(f"On MuJoCo: {held_physics} of {len(physics['claims'])} "
-                     f"({physics_step.seconds:.0f} s; {_plant_line(physics)}).")
+                     f"({physics_step.seconds:.0f} s; {_plant_line(physics)}; what the plant "
+                     f"changes and why: [mujoco/{name}/{name}.md](mujoco/{name}/{name}.md)).")
     else:
         lines.append("On MuJoCo: not run — " + (physics_step.reason if physics_step else
                                                 "not part of this run") + ".")
