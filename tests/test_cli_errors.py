@@ -113,6 +113,8 @@ BAD_ARGUMENTS = [
     (["audit", "--backends", "nosuch"], "unknown or unavailable QP backend 'nosuch'"),
     (["view", "/nonexistent/results"], "no such file or folder"),
     (["play", "r2d2", "--seconds", "1"], "unknown robot"),
+    (["sweep", "omni", "--seeds", "0"], "--seeds must be >= 1"),
+    (["sweep", "omni", "--param", "nosuch=1"], "unknown parameter 'nosuch'"),
     (["study"], "the study NAME is missing"),
     (["study", "nosuch"], "unknown study 'nosuch'"),
 ]

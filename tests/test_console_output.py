@@ -151,7 +151,7 @@ def test_studies_report_the_lines_in_their_timing(tmp_path, capfd):
     backend_or_skip("qpoases")
     from wbc.experiments.studies.study import StudyResult, study_main, timing_summary
 
-    def run(backend, out_dir, quick):
+    def run(backend, out_dir, quick, options=None):
         solve_twice(make_backend(backend), PETRIC_LEVEL)
         return StudyResult("fake", [], {}, {backend: timing_summary([1e-5]),
                                             "daqp": timing_summary([1e-5])})
