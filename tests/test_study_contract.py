@@ -11,9 +11,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from wbc.errors import InvalidValueError, UnknownNameError  # noqa: E402
 from wbc.experiments.studies.study import (  # noqa: E402
     Claim,
+    StudyOptions,
     StudyResult,
+    parse_params,
     save_figure,
     study_main,
     timing_summary,
@@ -62,3 +65,37 @@ def test_bad_arguments_and_unlabelled_figures_are_refused(tmp_path):
         save_figure(fig, tmp_path / "bad.png")
     with pytest.raises(ValueError):
         timing_summary([])
+
+
+def test_study_main_passes_the_plant_seed_and_params_and_records_them(tmp_path):
+    seen = []
+
+    def run(backend, out_dir, quick, options):
+        seen.append(options)
+        return fake_run(backend, out_dir, quick, options)
+
+    assert study_main("fake", run, ["--out", str(tmp_path), "--plant", "mujoco",
+                                    "--seed", "3"]) == 0
+    assert seen[0] == StudyOptions(plant="mujoco", seed=3)
+    data = json.loads((tmp_path / "fake" / "fake.json").read_text())
+    assert data["seed"] == 3 and data["params"] == {} and "plant" in data
+    assert data["plant_timing"]["wall_s"] > 0
+    with pytest.raises(SystemExit) as exit_info:  # this study sweeps no constant
+        study_main("fake", run, ["--out", str(tmp_path), "--param", "mu=0.5"])
+    assert exit_info.value.code == 2
+    with pytest.raises(InvalidValueError):
+        StudyOptions(plant="gazebo")
+    with pytest.raises(InvalidValueError):
+        StudyOptions(seed=-1)
+
+
+def test_parse_params_reads_lists_and_refuses_unknown_keys_and_bad_values():
+    swept = {"mu": (0.3, "friction [-]"), "gain": (10.0, "gain [1/s]")}
+    assert parse_params(["mu=0.3,0.5", "gain=4"], swept) == {"mu": [0.3, 0.5], "gain": [4.0]}
+    for bad, error in ((["mu"], InvalidValueError), (["mu=a"], InvalidValueError),
+                       (["mu=1", "mu=2"], InvalidValueError), (["mu=inf"], InvalidValueError),
+                       (["speed=1"], UnknownNameError)):
+        with pytest.raises(error):
+            parse_params(bad, swept)
+    assert StudyOptions(params={"gain": 4.0}).value("gain", swept) == 4.0
+    assert StudyOptions().value("gain", swept) == 10.0

@@ -439,6 +439,7 @@ def study_main(name: str, run: Callable[..., StudyResult],
     started = time.perf_counter()
     printed_before = dict(CONSOLE_LINES)
     result = run(args.backend, args.out / name, args.quick, options)
+    result.options = options  # the JSON records what ran, whatever the study passed on
     for backend, t in result.timing.items():
         printed = CONSOLE_LINES.get(backend, 0) - printed_before.get(backend, 0)
         if printed:
