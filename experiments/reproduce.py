@@ -41,6 +41,7 @@ from pathlib import Path
 from .campaigns.sweep import interval
 from .machine import describe_machine
 from .progress import report_progress
+from .studies.study import cell
 
 PAPERS = {"sorour": "Sorour, Cherubini, Fraisse — steerable wheeled mobile manipulation",
           "petric": "Petrič, Žlajpah — spatially modulated velocity fields",
@@ -204,7 +205,7 @@ def _paper_section(name: str, out: Path, steps: dict[str, Step]
     for c in claims:
         p = by_id_physics.get(c["id"])
         w = by_id_sweep.get(c["id"])
-        physics_cells = (f"{_cell(p['ours'])} | {'yes' if p['holds'] else '**no**'}"
+        physics_cells = (f"{cell(p['ours'])} | {'yes' if p['holds'] else '**no**'}"
                          if p else "— | —")
         if w:
             seeds = f"{w['holds']} of {w['seeds']}" + (
@@ -212,8 +213,8 @@ def _paper_section(name: str, out: Path, steps: dict[str, Step]
             spread = interval(w)
         else:
             seeds, spread = "—", "—"
-        lines.append(f"| {c['statement']} (`{c['id']}`) | {_cell(c['paper'])} | "
-                     f"{_cell(c['ours'])} | {'yes' if c['holds'] else '**no**'} | "
+        lines.append(f"| {c['statement']} (`{c['id']}`) | {cell(c['paper'])} | "
+                     f"{cell(c['ours'])} | {'yes' if c['holds'] else '**no**'} | "
                      f"{physics_cells} | {seeds} | {spread} | {c.get('note', '')} |")
     timing = data.get("timing") or {}
     if timing:
@@ -305,14 +306,6 @@ def _chromium_unavailable_reason() -> str | None:
         if type(err).__name__ == "VizUnavailableError":
             return "viser is not installed: no [viz] extra"
         return f"{type(err).__name__}: {str(err)[:160]}"
-
-
-def _cell(value) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, dict):
-        return ", ".join(f"{k}: {_cell(v)}" for k, v in value.items())
-    return str(value)
 
 
 def _peer_rows(out: Path, steps: dict[str, Step]) -> list[str]:

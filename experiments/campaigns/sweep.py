@@ -49,7 +49,7 @@ from wbc.errors import UnknownNameError
 
 from ..arguments import add_cluster_arguments, cluster_options
 from ..machine import describe_machine
-from ..studies.study import PLANTS, StudyOptions, parse_params
+from ..studies.study import PLANTS, StudyOptions, cell, parse_params
 from . import cluster
 
 __all__ = ["BOOTSTRAP", "ROBUST", "STUDIES", "aggregate", "main", "plan", "run_case", "sweep"]
@@ -208,7 +208,7 @@ def markdown(result: dict) -> str:
         lines += ["| claim | paper | holds in | median [95 % interval] | robust |",
                   "|---|---|---:|---|:---:|"]
         for c in setting["claims"]:
-            lines.append(f"| {c['statement']} (`{c['id']}`) | {_cell(c['paper'])} | "
+            lines.append(f"| {c['statement']} (`{c['id']}`) | {cell(c['paper'])} | "
                          f"{c['holds']} of {c['seeds']} | {interval(c)} | "
                          f"{'yes' if c['holds_fraction'] >= ROBUST else '**no**'} |")
         lines.append("")
@@ -227,14 +227,6 @@ def interval(claim: dict) -> str:
         return "; ".join(f"{k}: {median[k]:.4g} [{ci[k][0]:.4g}, {ci[k][1]:.4g}]"
                          for k in median)
     return f"{median:.4g} [{ci[0]:.4g}, {ci[1]:.4g}]"
-
-
-def _cell(value) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, dict):
-        return ", ".join(f"{k}: {_cell(v)}" for k, v in value.items())
-    return str(value)
 
 
 def figure(result: dict, path: Path) -> str | None:

@@ -62,8 +62,9 @@ import numpy as np
 
 from ..machine import describe_machine
 
-__all__ = ["DOCUMENTED", "PLANTS", "Claim", "StudyOptions", "StudyResult", "make_plant",
-           "parse_params", "plant_timing", "save_figure", "study_main", "timing_summary"]
+__all__ = ["DOCUMENTED", "PLANTS", "Claim", "StudyOptions", "StudyResult", "cell",
+           "make_plant", "parse_params", "plant_timing", "save_figure", "study_main",
+           "timing_summary"]
 
 #: the plants a study runs on (``--plant``)
 PLANTS = ("kinematic", "mujoco")
@@ -221,7 +222,7 @@ class StudyResult:
             lines += ["**Failures:**", *[f"- {f}" for f in self.failures], ""]
         lines += ["| claim | paper | ours | holds | note |", "|---|---|---|:---:|---|"]
         for c in self.claims:
-            lines.append(f"| {c.statement} (`{c.id}`) | {_cell(c.paper)} | {_cell(c.ours)} | "
+            lines.append(f"| {c.statement} (`{c.id}`) | {cell(c.paper)} | {cell(c.ours)} | "
                          f"{'yes' if c.holds else '**no**'} | {c.note} |")
         if self.timing:
             lines += ["", "| backend | tick median [µs] | tick p95 [µs] | ticks | console lines |",
@@ -257,11 +258,13 @@ class StudyResult:
         return folder
 
 
-def _cell(value) -> str:
+def cell(value) -> str:
+    """A claim's value in a markdown table cell: floats to 4 significant digits, dicts as
+    ``key: value`` pairs."""
     if isinstance(value, float):
         return f"{value:.4g}"
     if isinstance(value, dict):
-        return ", ".join(f"{k}: {_cell(v)}" for k, v in value.items())
+        return ", ".join(f"{k}: {cell(v)}" for k, v in value.items())
     return str(value)
 
 
