@@ -49,6 +49,7 @@ tick a powered wheel's motor was at its torque limit) and ``"base_tilt"`` (N,) [
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +73,7 @@ from .study import (
     replay_timing,
     save_figure,
     study_main,
+    timing_summary,
 )
 
 __all__ = ["METHODS", "PARAMETERS", "PARAMETERS_SWEPT", "RANDOM_ELEMENTS", "SCENARIOS", "main",
@@ -356,15 +358,59 @@ def timing(robot, states: list, backends, budget_s: float,
     """Force-control tick (eq. 6 + the proportional distribution's QP, friction coefficient
     ``mu``) per backend, replayed on ``states`` (``(q, v, references)`` of the daqp runs), at
     most ``budget_s`` per backend; ``"qp_median_s"``: the distribution's share (assembly + QP
-    solve)."""
-    def controller(backend):
+    solve). Each backend's controller is the default one (the fast path,
+    :class:`OmniForceControl`'s ``fused``); daqp's is timed interleaved with the ordinary path
+    (:func:`interleaved_timing`), which adds ``"ordinary_tick_median_s"`` and
+    ``"ordinary_tick_p95_s"``."""
+    def controller(backend, fused="auto"):
         distribution = TorqueDistribution(robot.base.jacobian, "proportional", mu,
-                                          backend=backend)
-        return OmniForceControl(robot, mu=mu, distribution=distribution)
+                                          backend=backend, fused=fused)
+        return OmniForceControl(robot, mu=mu, distribution=distribution, fused=fused)
 
-    return replay_timing(backends, controller, states,
-                         lambda control, state: control.step(state[0], state[1], **state[2]),
-                         budget_s, ("qp_median_s", lambda c: c.last_solution.timings.total))
+    others = [backend for backend in backends if backend != "daqp"]
+    timings, failures = replay_timing(others, controller, states, _tick, budget_s,
+                                      ("qp_median_s", _qp_seconds))
+    if "daqp" in backends:
+        timings = {"daqp": interleaved_timing(controller("daqp"), controller("daqp", False),
+                                              states, budget_s), **timings}
+    return timings, failures
+
+
+def _tick(control: OmniForceControl, state: tuple) -> None:
+    """One force-control tick on a recorded ``(q, v, references)``."""
+    control.step(state[0], state[1], **state[2])
+
+
+def _qp_seconds(control: OmniForceControl) -> float:
+    """The last tick's distribution share [s] (assembly + QP solve)."""
+    return control.last_solution.timings.total
+
+
+def interleaved_timing(fast: OmniForceControl, ordinary: OmniForceControl, states: list,
+                       budget_s: float) -> dict:
+    """The default controller's tick against the same controller with the fast path off
+    (``fused=False``), interleaved tick by tick over ``states`` (passes over them until
+    ``budget_s`` [s] is spent, at least one; which of the two goes first alternates), so that
+    the machine's load weighs on both alike: :func:`timing_summary` of the fast ticks,
+    ``"qp_median_s"`` (its distribution's share) and ``"ordinary_tick_median_s"``,
+    ``"ordinary_tick_p95_s"`` [s]."""
+    clock = time.perf_counter
+    ticks: list[float] = []
+    ordinary_ticks: list[float] = []
+    shares: list[float] = []
+    started = clock()
+    while not ticks or clock() - started < budget_s:
+        for k, state in enumerate(states):
+            order = ((fast, ticks), (ordinary, ordinary_ticks))
+            for control, out in order if k % 2 else order[::-1]:
+                t0 = clock()
+                _tick(control, state)
+                out.append(clock() - t0)
+            shares.append(_qp_seconds(fast))
+    ordinary_summary = timing_summary(ordinary_ticks)
+    return {**timing_summary(ticks), "qp_median_s": float(np.median(shares)),
+            "ordinary_tick_median_s": ordinary_summary["tick_median_s"],
+            "ordinary_tick_p95_s": ordinary_summary["tick_p95_s"]}
 
 
 #: what the position claims' notes say of the plant's error sources, per plant
@@ -587,9 +633,14 @@ errors). Force control: eq. 6 with M = diag(45, 45, 2), k_p = M·16 s⁻²,
 k_v = M·8 s⁻¹ (our choice), world frame, then the distribution's QP on the chosen backend;
 normal forces from the measured arm joints.
 
-**Timing.** A force-control tick is eq. 6, the whole system's centre of mass
-(`wbc.robots.system_com`, a pinocchio pass over the arm), the normal forces and the
-distribution's QP; the last table gives the QP's share (`qp_median_s` in the JSON).
+**Timing.** A force-control tick is eq. 6, the whole system's centre of mass, the normal
+forces and the distribution's QP. By default (the fast path, `OmniForceControl(fused="auto")`)
+the first three are one generated C call writing into the distribution's parameters, and on
+daqp the QP is one more (`TorqueDistribution(fused="auto")`, `wbc.fused`); the ordinary path
+(`fused=False` for both) computes them in numpy and pinocchio (`wbc.robots.system_com`) around
+the Python daqp backend. daqp's tick is timed interleaved with the ordinary path's over the
+same recorded states (`ordinary_tick_median_s` in the JSON); the other backends run the fast
+model stage around their QP. The last table gives the QP's share (`qp_median_s`).
 
 **Robustness.** The distributions' slip ranking is rerun with μ = 0.2 and 0.5 (full runs
 only; the `*_sweep` claims), so that it does not rest on the one friction coefficient chosen.
@@ -703,6 +754,14 @@ def run(backend: str, out_dir: Path, quick: bool,
     qp_table = ["", "The distribution's QP alone (median over the replayed ticks):", "",
                 "| backend | QP median [µs] |", "|---|---:|"]
     qp_table += [f"| {b} | {1e6 * t['qp_median_s']:.0f} |" for b, t in timings.items()]
+    if "daqp" in timings:
+        t = timings["daqp"]
+        qp_table += ["", f"daqp, interleaved over the same states: the default (fast) path "
+                     f"{1e6 * t['tick_median_s']:.1f} µs median (p95 "
+                     f"{1e6 * t['tick_p95_s']:.1f}), the ordinary path "
+                     f"{1e6 * t['ordinary_tick_median_s']:.1f} µs (p95 "
+                     f"{1e6 * t['ordinary_tick_p95_s']:.1f}): "
+                     f"{t['tick_median_s'] / t['ordinary_tick_median_s']:.2f}×."]
     parameters = {**p, "substeps": substeps, "backend": backend,
                   "scenarios": {k: {"direction": d.tolist(), "distance_m": s}
                                 for k, (d, s) in SCENARIOS.items()}}

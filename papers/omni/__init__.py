@@ -30,6 +30,7 @@ from .control import (
 )
 from .distribution_tasks import (
     DISTRIBUTIONS,
+    FUSED_METHODS,
     FrictionUtilisation,
     TorqueDistribution,
     UtilisationBound,
@@ -44,6 +45,7 @@ from .dynamics import (
 __all__ = [
     "DISTRIBUTIONS",
     "DISTRIBUTION_METHODS",
+    "FUSED_METHODS",
     "FrictionUtilisation",
     "OmniDynamics",
     "OmniForceControl",
