@@ -128,6 +128,8 @@ def test_a_sweep_survives_a_killed_worker(tmp_path, here):
     assert process.returncode == 0, stderr[-2000:]
     result = tmp_path / "killed" / "sweep_omni" / "sweep_omni.json"
     assert comparable(result) == comparable(here)
+    # the killed worker was running cases: they were run again
+    assert max(json.loads(result.read_text())["cluster"]["attempts"].values()) >= 2
 
 
 @pytest.mark.parametrize("argv, message", [
