@@ -406,9 +406,12 @@ def study_main(name: str, run: Callable[..., StudyResult],
     from wbc.solvers import available_backends
     from wbc.solvers.base import CONSOLE_LINES
 
-    swept = getattr(sys.modules.get(run.__module__), "PARAMETERS_SWEPT", {})
+    module = sys.modules.get(run.__module__)
+    swept = getattr(module, "PARAMETERS_SWEPT", {})
+    drawn = getattr(module, "RANDOM_ELEMENTS", "")
     parser = argparse.ArgumentParser(prog=f"wbc study {name}",
-                                     description=f"Rerun the {name} paper study in simulation.")
+                                     description=f"Rerun the {name} paper study in simulation.",
+                                     epilog=f"What a --seed draws: {drawn}" if drawn else None)
     parser.add_argument("--backend", default="daqp",
                         help="QP backend of the figures' runs (default daqp); timing covers "
                              "every available backend")
