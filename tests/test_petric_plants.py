@@ -39,7 +39,10 @@ def mujoco(tmp_path_factory):
 
 def test_default_claims_are_the_ones_before_the_options(main_only):
     """Numbers of `wbc study petric --quick` computed before StudyOptions existed; main_only
-    runs the same scenario runs, and leaves out constant_time (wall time, a side campaign)."""
+    runs the same scenario runs, and leaves out constant_time (wall time, a side campaign).
+    Agreement to 1e-8 relative, not bit for bit: the field and the TEE point now run as
+    generated C (issue #28's fast path), whose round-off differs from numpy's and pinocchio's by
+    an ulp a tick (fixed_base_error's ratio moved by 1.6e-10 over the closed loop)."""
     _, result = main_only
     assert result.options.seed is None and result.options.plant == "kinematic"
     claims = {c.id: c for c in result.claims}
@@ -49,14 +52,14 @@ def test_default_claims_are_the_ones_before_the_options(main_only):
         "sine_heading": False, "bounds": True, "damped_projector_leak": False,
         "whole_body_vs_decoupled": True}
     assert claims["fixed_base_error"].ours["ratio"] == pytest.approx(4.461921608225918,
-                                                                     rel=1e-12)
-    assert claims["retreat_low"].ours["turn_deg"] == pytest.approx(38.52829456873698, rel=1e-12)
+                                                                     rel=1e-8)
+    assert claims["retreat_low"].ours["turn_deg"] == pytest.approx(38.52829456873698, rel=1e-8)
     assert claims["sine_heading"].ours["large_deg"] == pytest.approx(2.170062436742392,
-                                                                    rel=1e-12)
+                                                                    rel=1e-8)
     assert claims["damped_projector_leak"].ours["max_mm_s"] == pytest.approx(
-        138.16435317460724, rel=1e-12)
+        138.16435317460724, rel=1e-8)
     assert claims["whole_body_vs_decoupled"].ours["rms_whole_body_mm"]["forward"] == \
-        pytest.approx(5.214926713919179, rel=1e-12)
+        pytest.approx(5.214926713919179, rel=1e-8)
 
 
 def test_the_lag_fit_recovers_the_kinematic_lag(main_only):

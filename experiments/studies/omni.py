@@ -49,7 +49,6 @@ tick a powered wheel's motor was at its torque limit) and ``"base_tilt"`` (N,) [
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 from typing import Any
 
@@ -68,12 +67,12 @@ from .study import (
     Claim,
     StudyOptions,
     StudyResult,
+    interleaved_timing,
     make_plant,
     plant_timing,
     replay_timing,
     save_figure,
     study_main,
-    timing_summary,
 )
 
 __all__ = ["METHODS", "PARAMETERS", "PARAMETERS_SWEPT", "RANDOM_ELEMENTS", "SCENARIOS", "main",
@@ -372,7 +371,8 @@ def timing(robot, states: list, backends, budget_s: float,
                                       ("qp_median_s", _qp_seconds))
     if "daqp" in backends:
         timings = {"daqp": interleaved_timing(controller("daqp"), controller("daqp", False),
-                                              states, budget_s), **timings}
+                                              states, budget_s=budget_s, share=_qp_seconds),
+                   **timings}
     return timings, failures
 
 
@@ -384,33 +384,6 @@ def _tick(control: OmniForceControl, state: tuple) -> None:
 def _qp_seconds(control: OmniForceControl) -> float:
     """The last tick's distribution share [s] (assembly + QP solve)."""
     return control.last_solution.timings.total
-
-
-def interleaved_timing(fast: OmniForceControl, ordinary: OmniForceControl, states: list,
-                       budget_s: float) -> dict:
-    """The default controller's tick against the same controller with the fast path off
-    (``fused=False``), interleaved tick by tick over ``states`` (passes over them until
-    ``budget_s`` [s] is spent, at least one; which of the two goes first alternates), so that
-    the machine's load weighs on both alike: :func:`timing_summary` of the fast ticks,
-    ``"qp_median_s"`` (its distribution's share) and ``"ordinary_tick_median_s"``,
-    ``"ordinary_tick_p95_s"`` [s]."""
-    clock = time.perf_counter
-    ticks: list[float] = []
-    ordinary_ticks: list[float] = []
-    shares: list[float] = []
-    started = clock()
-    while not ticks or clock() - started < budget_s:
-        for k, state in enumerate(states):
-            order = ((fast, ticks), (ordinary, ordinary_ticks))
-            for control, out in order if k % 2 else order[::-1]:
-                t0 = clock()
-                _tick(control, state)
-                out.append(clock() - t0)
-            shares.append(_qp_seconds(fast))
-    ordinary_summary = timing_summary(ordinary_ticks)
-    return {**timing_summary(ticks), "qp_median_s": float(np.median(shares)),
-            "ordinary_tick_median_s": ordinary_summary["tick_median_s"],
-            "ordinary_tick_p95_s": ordinary_summary["tick_p95_s"]}
 
 
 #: what the position claims' notes say of the plant's error sources, per plant

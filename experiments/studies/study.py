@@ -63,8 +63,8 @@ import numpy as np
 from ..machine import describe_machine
 
 __all__ = ["DOCUMENTED", "PLANTS", "Claim", "StudyOptions", "StudyResult", "cell",
-           "make_plant", "parse_params", "plant_timing", "save_figure", "study_main",
-           "timing_summary"]
+           "interleaved_timing", "make_plant", "parse_params", "plant_timing", "save_figure",
+           "study_main", "timing_summary"]
 
 #: the plants a study runs on (``--plant``)
 PLANTS = ("kinematic", "mujoco")
@@ -336,6 +336,56 @@ def replay_timing(backends: Sequence[str], make_controller: Callable, states: Se
         if part is not None:
             out[backend][part[0]] = float(np.median(shares))
     return out, failed
+
+
+def interleaved_timing(fast, ordinary, states: Sequence, *, passes: int = 1,
+                       budget_s: float = 0.0, reset: Callable | None = None,
+                       share: Callable | None = None, warm_up: int = 0) -> dict:
+    """A controller's default (fast) tick against the same controller with its fast path off,
+    interleaved tick by tick over recorded ``states`` ``(q, v, references)`` — which of the two
+    goes first alternates — so that the machine's load and caches weigh on both alike.
+
+    Args:
+        fast, ordinary: controllers (``step(q, v, **references) -> command``).
+        passes: passes over ``states`` at least; more while ``budget_s`` [s] is not spent.
+        reset: ``fn(controller)`` before each pass (controllers with state, e.g. a latch).
+        share: ``fn(fast) -> seconds``, a share of each fast tick (e.g. its QP): its median is
+            added as ``"qp_median_s"``.
+        warm_up: first ticks left out of both summaries.
+
+    Returns:
+        :func:`timing_summary` of the fast ticks, ``"ordinary_tick_median_s"``,
+        ``"ordinary_tick_p95_s"`` [s], ``"passes"`` and ``"max_command_difference"`` (the
+        largest ``|fast − ordinary|`` of any command entry over every tick).
+    """
+    clock = time.perf_counter
+    fast_ticks: list[float] = []
+    ordinary_ticks: list[float] = []
+    shares: list[float] = []
+    worst, done, started = 0.0, 0, clock()
+    while done < passes or clock() - started < budget_s:
+        if reset is not None:
+            reset(fast)
+            reset(ordinary)
+        for k, (q, v, references) in enumerate(states):
+            pair = ((fast, fast_ticks), (ordinary, ordinary_ticks))
+            commands = {}
+            for controller, ticks in pair if k % 2 else pair[::-1]:
+                t0 = clock()
+                commands[controller is fast] = controller.step(q, v, **references)
+                ticks.append(clock() - t0)
+            worst = max(worst, float(np.max(np.abs(commands[True] - commands[False]))))
+            if share is not None:
+                shares.append(share(fast))
+        done += 1
+    ordinary_summary = timing_summary(ordinary_ticks[warm_up:])
+    out = {**timing_summary(fast_ticks[warm_up:]),
+           "ordinary_tick_median_s": ordinary_summary["tick_median_s"],
+           "ordinary_tick_p95_s": ordinary_summary["tick_p95_s"], "passes": done,
+           "max_command_difference": worst}
+    if share is not None:
+        out["qp_median_s"] = float(np.median(shares))
+    return out
 
 
 def save_figure(fig, path: Path) -> str:

@@ -10,7 +10,8 @@ What lives where:
   QP beyond the paper (:func:`whole_body_stack`), the gains (:data:`KP`, :data:`K_POSTURE`) and
   control period (:data:`DT`);
 * :mod:`~wbc.papers.petric.controllers` — :class:`DecoupledController` (the paper's: arm and
-  base independent) and :class:`WholeBodyController`;
+  base independent) and :class:`WholeBodyController`, on a fast path by default (the arm's
+  fused QPs, the TEE point and the field as generated C; ``fused=False`` turns it off);
 * :mod:`~wbc.papers.petric.closed_form` (the base's rate limits) and
   :mod:`~wbc.papers.petric.closed_form_arm` (eq. 22, eq. 26's damped projector) — the closed
   forms (also in :mod:`wbc.solvers.reference`).

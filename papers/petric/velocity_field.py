@@ -19,6 +19,10 @@ Pipeline of one tick (:meth:`VelocityField.step`):
    :func:`wbc.papers.petric.closed_form.rate_limited_twist`); the same stage as a QP level a
    stack can carry: :meth:`~VelocityField.rate_limit_level`.
 
+The same tick as a CasADi expression (:meth:`~VelocityField.symbolic_step`, branches as
+``if_else``, the latched heading in :attr:`~VelocityField.state`) is what the controllers'
+fast path compiles (:class:`wbc.papers.petric.FieldDriver`).
+
 **Readings of the printed equations** (decided here, each tested):
 
 * *Eq. 6 sign.* The paper prints ``d_r = b_d − |·|``, which is large next to the base and negative
@@ -79,8 +83,14 @@ _DEG30, _DEG45 = math.radians(30.0), math.radians(45.0)
 
 def smoothstep(s):
     """``3s² − 2s³`` of ``s`` clipped to ``[0, 1]`` (eqs. 9 and 12 with their outer branches);
-    a float for a float (the control tick's path), an array for an array."""
-    s = min(max(s, 0.0), 1.0) if isinstance(s, (int, float)) else np.clip(s, 0.0, 1.0)
+    a float for a float (the control tick's path), an array for an array, a CasADi expression
+    for one (the compiled tick, :meth:`VelocityField.symbolic_step`)."""
+    if isinstance(s, (int, float)):
+        s = min(max(s, 0.0), 1.0)
+    elif isinstance(s, ca.SX):
+        s = ca.fmin(ca.fmax(s, 0.0), 1.0)
+    else:
+        s = np.clip(s, 0.0, 1.0)
     return s * s * (3.0 - 2.0 * s)
 
 
@@ -113,7 +123,8 @@ class VelocityField:
         dv_max, domega_max: largest change of ``v``, ``ω`` per tick (1.0 and 1.0).
 
     State (of :meth:`step`): the previous applied command :attr:`command` and the latched
-    retreat heading :attr:`heading` (``None`` outside the retreat zone); :meth:`reset` clears it.
+    retreat heading :attr:`heading` (``None`` outside the retreat zone), both kept in
+    :attr:`state` ``(v, ω, heading, latched)``; :meth:`reset` clears it.
 
     Example:
         >>> field = VelocityField()
@@ -152,6 +163,9 @@ class VelocityField:
         self.r_f = self.l1 + self.l2
         self.limit = np.array([self.v_max, self.omega_max])
         self.rate_limit = np.array([self.dv_max, self.domega_max])
+        # (v, ω) applied at the previous tick, the latched heading [rad] and whether one is
+        # latched (1.0) or not (0.0): one array, which the compiled tick reads in place
+        self.state = np.zeros(4)
         self.reset()
 
     # ------------------------------------------------------------------ geometry and raw laws
@@ -229,8 +243,18 @@ class VelocityField:
             raise ShapeError(f"command must have shape (2,), got {command.shape}")
         if not np.all(np.isfinite(command)):
             raise NonFiniteError("command holds NaN or inf")
-        self.command = command.copy()
-        self.heading: float | None = None
+        # written in place: a compiled tick reads this array (wbc.papers.petric.FieldDriver)
+        self.state[:] = (command[0], command[1], 0.0, 0.0)
+
+    @property
+    def command(self) -> np.ndarray:
+        """The previous applied command ``(v [m/s], ω [rad/s])`` (a copy of :attr:`state`'s)."""
+        return self.state[:2].copy()
+
+    @property
+    def heading(self) -> float | None:
+        """The latched retreat heading [rad], ``None`` outside the retreat zone."""
+        return float(self.state[2]) if self.state[3] else None
 
     def _point(self, p) -> list[float]:
         p = self._points(p)
@@ -239,11 +263,13 @@ class VelocityField:
         return p.tolist()
 
     def _latch(self, d_r, phi) -> float | None:
+        state = self.state  # (item by item: cheaper than slices on a 2-vector)
         if d_r >= self.delta_r:
-            self.heading = None
-        elif self.heading is None:
-            self.heading = self.retreat_heading(phi)
-        return self.heading
+            state[2] = state[3] = 0.0
+            return None
+        if not state[3]:
+            state[2], state[3] = self.retreat_heading(phi), 1.0
+        return float(state[2])
 
     def update_heading(self, p) -> float | None:
         """Latch stage of :meth:`step`: on entering the retreat zone latch eq. 11's heading from
@@ -262,12 +288,39 @@ class VelocityField:
         it as :attr:`command` for the next tick."""
         d_f, d_r, phi = self._geometry(*self._point(p))
         raw = self._laws(d_f, d_r, phi, self._latch(d_r, phi))
-        smoothed, previous = self.smooth(raw, self.command), self.command
+        previous = self.state[:2]
+        smoothed = self.smooth(raw, previous)
         # eqs. 16-17, the two-stage clip; its closed form with checked arguments, the oracle
         # of the tests and of rate_limit_level, is wbc.papers.petric.closed_form's
-        self.command = np.clip(previous + np.clip(smoothed - previous, -self.rate_limit,
-                                                  self.rate_limit), -self.limit, self.limit)
-        return float(self.command[0]), float(self.command[1])
+        self.state[:2] = np.clip(previous + np.clip(smoothed - previous, -self.rate_limit,
+                                                    self.rate_limit), -self.limit, self.limit)
+        return float(self.state[0]), float(self.state[1])
+
+    def symbolic_step(self, p: ca.SX, state: ca.SX) -> ca.SX:
+        """:meth:`step` as a CasADi expression, for a tick compiled to C: the new :attr:`state`
+        (4,) from the TEE point ``p`` (3,) [m] and the previous ``state`` (4,), the branches as
+        ``if_else`` and the latch as the state's last two entries. The same operations as
+        :meth:`_geometry`, :meth:`_latch`, :meth:`_laws` and :meth:`step` in the same order
+        (``tests/test_petric_fast.py`` holds the two equal)."""
+        x, y, z = p[0], p[1], p[2]
+        planar = ca.hypot(x, y)
+        to_shoulder = ca.hypot(planar, z - self.l0)
+        d_r = ca.if_else(z <= self.l0, planar, to_shoulder) - self.b_d     # eq. 6
+        d_f, phi = self.r_f - to_shoulder, ca.atan2(y, x)                  # eq. 4
+        inside = d_r < self.delta_r                                         # eq. 13: retreat
+        entry = ca.if_else(phi >= 0.0, -self.phi_t, self.phi_t)           # eq. 11
+        heading = ca.if_else(inside, ca.if_else(state[3], state[2], entry), 0.0)
+        eta = smoothstep((self.delta_r - d_r) / self.epsilon)              # eq. 12
+        gamma = smoothstep((ca.fabs(phi) - self.phi_min) / (self.phi_max - self.phi_min))
+        v = ca.if_else(inside, -self.k_r * (self.delta_r - d_r),           # eq. 7
+                       ca.if_else(d_f < self.delta_f, self.k_f * (self.delta_f - d_f), 0.0))
+        omega = ca.if_else(inside, -ca.sign(heading - phi) * self.omega_max * eta,  # eq. 10
+                           self.k_omega * ca.sign(phi) * gamma)            # eqs. 8-9
+        previous = state[:2]
+        smoothed = (1.0 - self.alpha) * previous + self.alpha * ca.vertcat(v, omega)
+        step = ca.fmin(ca.fmax(smoothed - previous, -self.rate_limit), self.rate_limit)
+        command = ca.fmin(ca.fmax(previous + step, -self.limit), self.limit)
+        return ca.vertcat(command, heading, ca.if_else(inside, 1.0, 0.0))
 
     # ------------------------------------------------------------------ eqs. 16-17 as a QP level
     def rate_limit_level(self, stack, priority: int = 0, block: str | None = None,
