@@ -503,6 +503,22 @@ def _cylinder_inertia(mass: float, radius: float, width: float) -> np.ndarray:
     return np.diag([side, 0.5 * mass * radius**2, side])
 
 
+def _tyred_wheel(body: ET.Element, name: str, mass: float, radius: float, width: float,
+                 armature: float, limit: float) -> np.ndarray:
+    """Make ``body`` a drive wheel: its inertia (a cylinder of ``mass`` [kg], ``radius`` and
+    ``width`` [m], axle along y), a hinge ``name`` about the axle with ``armature`` [kg m²] and
+    torque range ``±limit`` [N m], and a rounded tyre (an ellipsoid: see the module docstring).
+    Returns the inertia [kg m²] about the wheel's centre."""
+    inertia = _cylinder_inertia(mass, radius, width)
+    _inertial(body, mass, np.zeros(3), inertia)
+    ET.SubElement(body, "joint", name=name, type="hinge", axis="0 1 0",
+                  armature=f"{armature:.12g}", actuatorfrcrange=f"{-limit:.12g} {limit:.12g}")
+    ET.SubElement(body, "geom", type="ellipsoid",
+                  size=f"{radius:.12g} {width / 2:.12g} {radius:.12g}", contype="2",
+                  conaffinity="1", mass="0")
+    return inertia
+
+
 def _suspension(parent: ET.Element, name: str, position, stiffness: float,
                 damping: float, preload: float) -> ET.Element:
     """A body at ``position`` on a vertical spring joint (see :data:`SUSPENSION_DEFLECTION`):
@@ -589,13 +605,8 @@ def _wheels(robot, kind: str, command: str, base_body: ET.Element, actuators: ET
         for i, y in enumerate((half, -half)):  # (left, right)
             centre = np.array([0.0, y, z])
             body = ET.SubElement(suspended(f"wheel{i}", centre), "body", name=f"wheel{i}")
-            inertia = _cylinder_inertia(wheel_mass, r, width)
-            _inertial(body, wheel_mass, np.zeros(3), inertia)
-            ET.SubElement(body, "joint", name=f"wheel{i}", type="hinge", axis="0 1 0",
-                          armature=f"{data['armature']:.12g}",
-                          actuatorfrcrange=f"{-limit:.12g} {limit:.12g}")
-            ET.SubElement(body, "geom", type="ellipsoid", size=f"{r:.12g} {width / 2:.12g} "
-                          f"{r:.12g}", contype="2", conaffinity="1", mass="0")
+            inertia = _tyred_wheel(body, f"wheel{i}", wheel_mass, r, width,
+                                   float(data["armature"]), limit)
             assemblies += _spatial(wheel_mass, centre, inertia)
             wheels.append(f"wheel{i}")
             wheel_bodies.append(f"wheel{i}")
@@ -622,13 +633,8 @@ def _wheels(robot, kind: str, command: str, base_body: ET.Element, actuators: ET
                           armature=f"{data['armature']:.12g}", damping="0.1",
                           actuatorfrcrange=f"{-limit:.12g} {limit:.12g}")
             wheel = ET.SubElement(steer, "body", name=f"wheel{i}", pos=_fmt(offset))
-            inertia = _cylinder_inertia(wheel_mass, r, width)
-            _inertial(wheel, wheel_mass, np.zeros(3), inertia)
-            ET.SubElement(wheel, "joint", name=f"wheel{i}", type="hinge", axis="0 1 0",
-                          armature=f"{data['armature']:.12g}",
-                          actuatorfrcrange=f"{-limit:.12g} {limit:.12g}")
-            ET.SubElement(wheel, "geom", type="ellipsoid", size=f"{r:.12g} {width / 2:.12g} "
-                          f"{r:.12g}", contype="2", conaffinity="1", mass="0")
+            inertia = _tyred_wheel(wheel, f"wheel{i}", wheel_mass, r, width,
+                                   float(data["armature"]), limit)
             # steering inertia: the fork and the wheel about the steer axis, plus the armature
             steer_inertia = (steer_mass * (0.05**2 + 0.25 * d * d) + wheel_mass * d * d
                              + inertia[0, 0] + float(data["armature"]))

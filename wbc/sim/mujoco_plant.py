@@ -175,6 +175,11 @@ class MujocoPlant:
         self.nq, self.nv = int(robot.nq), int(robot.nv)
         self.nv_base = int(getattr(robot, "nv_base", 0))
         self.base: Any = getattr(robot, "base", None) if self.kind != "fixed" else None
+        # an unsteered base's wheel rates = J · base velocity coordinates (its model's matrix;
+        # empty for a steered or fixed base, which have none)
+        self._jacobian = (np.asarray(robot.base.jacobian, dtype=float)
+                          if self.kind in ("differential", "omni", "mecanum")
+                          else np.zeros((0, 0)))
         self._built: dict[str, tuple] = {}
         self._substeps = 0
         self._theta = self._theta_wrapped = 0.0  # base heading [rad]: unwrapped, MuJoCo's
@@ -294,7 +299,7 @@ class MujocoPlant:
             steering = self.data.qpos[self._steer_q]
             rates = self.base.inverse(base_velocity, steering)
             return rates.drive_rates, rates.steer_rates
-        return np.asarray(self.base.jacobian, dtype=float) @ base_velocity, np.zeros(0)
+        return self._jacobian @ base_velocity, np.zeros(0)
 
     # ------------------------------------------------------------------ the interface
     def reset(self, q0, v0, dt: float, command: str = "velocity"):
@@ -451,7 +456,7 @@ class MujocoPlant:
                     else np.zeros(self._substeps))
             targets = (base_start if kind == "acceleration" else base_target) + np.outer(
                 ramp, command[:nb] if kind == "acceleration" else np.zeros(nb))
-            drives = targets @ np.asarray(self.base.jacobian, dtype=float).T[:, self._powered]
+            drives = targets @ self._jacobian.T[:, self._powered]
         qpos_rows, qvel_rows, force_rows = self._rows
         # MuJoCo's arrays bound once (each attribute read makes a new view) and the index
         # arrays as slices where contiguous: the loop below runs 1000 times a simulated second
@@ -576,7 +581,7 @@ class MujocoPlant:
             else:
                 along = along + turn
             return np.hypot(along, across), np.zeros(len(qpos))
-        J = np.asarray(self.base.jacobian, dtype=float)
+        J = self._jacobian
         coordinates = (np.column_stack([vx, omega]) if self.nv_base == 2
                        else np.column_stack([vx, vy, omega]))
         return np.abs(r * (coordinates @ J.T - rates)), np.abs(vy)
