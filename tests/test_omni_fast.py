@@ -163,3 +163,17 @@ def test_fused_distribution(robot, method):
         assert np.abs(tau - ordinary(f_d, forces)).max() <= TOL
         assert np.abs(tau - ref.torque_distribution(J, f_d, forces, MU, method)).max() <= TOL
     assert fused.workspace.fallback_solves == 0
+
+
+def test_a_solution_read_is_not_rewritten_by_the_next_solve(robot):
+    # the fused workspace reuses one solution object: what a caller read stays as it was
+    distribution = TorqueDistribution(robot.base.jacobian, "proportional", MU)
+    assert distribution.fused
+    forces = np.full(4, 110.0)
+    tau = distribution([20.0, 0.0, 0.0], forces)
+    first = distribution.last_solution
+    kept = first.x.copy()
+    distribution([0.0, 30.0, 1.0], forces)
+    assert np.array_equal(first.x, kept) and np.array_equal(first.x[:4], tau)
+    assert distribution.last_solution is not first
+    assert not np.array_equal(distribution.last_solution.x, kept)

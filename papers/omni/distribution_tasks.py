@@ -209,9 +209,10 @@ class TorqueDistribution:
 
     Attributes:
         stack, workspace: the stack and its workspace; ``last_solution``: the last
-        :class:`wbc.Solution` (its status says whether the QP was solved; on the fused path one
-        object every tick rewrites: copy what you keep); ``fused``: whether the QP is fused,
-        ``fused_reason``: why not (``None`` when it is).
+        :class:`wbc.Solution` (its status says whether the QP was solved; on the fused path
+        the workspace's reused solution, copied when first read, so that what a caller holds is
+        never rewritten by a later solve — as :attr:`wbc.Controller.last_solution`);
+        ``fused``: whether the QP is fused, ``fused_reason``: why not (``None`` when it is).
     """
 
     def __init__(self, J, method: str = "proportional", mu=1.0, backend: str = "daqp",
@@ -233,7 +234,21 @@ class TorqueDistribution:
         self._forces = None if method == "min_norm" else self.workspace.view(
             "friction.normal_forces")
         self._tau = self.stack.variables.slice("tau")
-        self.last_solution: wbc.Solution | None = None
+        self._live = None if fused_workspace is None else fused_workspace.fused_solution
+        self._last_solution: wbc.Solution | None = None
+
+    @property
+    def last_solution(self) -> wbc.Solution | None:
+        """The last solve's :class:`wbc.Solution` (class docstring)."""
+        solution = self._last_solution
+        if solution is not None and solution is self._live:
+            # the fused workspace's buffers, rewritten by every answered tick: copied once
+            solution = self._last_solution = solution.snapshot()
+        return solution
+
+    @last_solution.setter
+    def last_solution(self, solution: wbc.Solution | None) -> None:
+        self._last_solution = solution
 
     def _fused_workspace(self, fused, method: str, backend: str,
                          profile: str) -> FusedWorkspace | None:
