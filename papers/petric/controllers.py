@@ -87,9 +87,9 @@ class FieldDriver:
                 raise ShapeError(f"q must have shape {self._q.shape}, got {q.shape}")
             if not all_finite(q):
                 raise NonFiniteError("q contains NaN or inf")
-        return self.advance(q).copy()
+        return self._advance(q).copy()
 
-    def advance(self, q) -> np.ndarray:
+    def _advance(self, q) -> np.ndarray:
         """:meth:`base_command` on a ``q`` already checked (by the caller's
         :class:`wbc.Controller`); on the fused path the ``(v, ω)`` returned is a buffer the next
         tick overwrites."""
@@ -143,7 +143,7 @@ class DecoupledController:
         # a copy: the array step returns is also the arm controller's last_command (q is
         # checked there)
         command = np.array(self.arm.step(q, v, **references))
-        command[: self.nb] = self.driver.advance(q) if self.move_base else 0.0
+        command[: self.nb] = self.driver._advance(q) if self.move_base else 0.0
         return command
 
 
