@@ -1,10 +1,13 @@
 """``wbc reproduce``: every paper study, the solver-timing study and the peer comparisons, in one
 report (``OUT/REPORT.md``, figures beside it).
 
-Steps, each run in this process through its own command-line entry point with its output
-captured in ``OUT/logs/<step>.log``: the four paper studies on the kinematic plant (``wbc study
-NAME``, into ``OUT/NAME``) and on MuJoCo (``--plant mujoco``, into ``OUT/mujoco/NAME``; skipped
-with its install hint without the ``mujoco`` package), a Monte-Carlo sweep of each study
+Steps, each run through its own command-line entry point with its output captured in
+``OUT/logs/<step>.log``: the four paper studies on the kinematic plant (``wbc study NAME``, into
+``OUT/NAME``, one after the other in this process: they time their controllers) and on MuJoCo
+(``--plant mujoco``, into ``OUT/mujoco/NAME``; skipped with its install hint without the
+``mujoco`` package; one spawned process per core runs them side by side — their tick timings
+are taken on the kinematic plant and repeat the kinematic studies', so the report reads those),
+a Monte-Carlo sweep of each study
 (``wbc sweep NAME --seeds`` :data:`SWEEP_SEEDS`, into ``OUT/sweeps``, on a local Dask cluster of
 one worker per core when ``distributed`` is installed, else in this process), ``wbc bench``
 and the head-to-heads with the peers (``wbc pink``, ``wbc mink``, ``wbc placo``; a peer that is
@@ -35,6 +38,7 @@ import shutil
 import sys
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,6 +54,9 @@ PAPERS = {"sorour": "Sorour, Cherubini, Fraisse — steerable wheeled mobile man
 #: the run each paper's strip shows (a key of the study's ``<name>_replay.npz``)
 MAIN_RUNS = {"sorour": "table_ii/compensated", "petric": "sine_large/whole_body",
              "omni": "diagonal/proportional", "xing": "circle_r025/amp_qp"}
+#: the MuJoCo studies, longest first (they run two at a time on two cores: the longest one
+#: beside the others)
+PHYSICS_ORDER = ("xing", "petric", "sorour", "omni")
 #: seeds of each study's sweep (``--quick``: :data:`SWEEP_SEEDS_QUICK`, the studies' quick mode)
 SWEEP_SEEDS = 16
 SWEEP_SEEDS_QUICK = 2
@@ -70,6 +77,9 @@ class Step:
     status: str = "pending"  # "ok", "failed", "skipped"
     reason: str = ""
     seconds: float = 0.0
+    #: may run beside its neighbours that are concurrent too, one per core (it times nothing
+    #: the report reads as its own: the MuJoCo studies' tick timings repeat the kinematic ones)
+    concurrent: bool = False
 
 
 def plan(out: Path, quick: bool) -> list[Step]:
@@ -79,7 +89,7 @@ def plan(out: Path, quick: bool) -> list[Step]:
                   ["--out", str(out), *short]) for name in PAPERS]
     steps += [Step(f"study {name} (mujoco)", f"wbc.experiments.studies.{name}",
                    ["--out", str(out / "mujoco"), "--plant", "mujoco", *short], "mujoco",
-                   "pip install 'wbc[mujoco]'") for name in PAPERS]
+                   "pip install 'wbc[mujoco]'", concurrent=True) for name in PHYSICS_ORDER]
     workers = sweep_workers()
     steps += [Step(f"sweep {name}", "wbc.experiments.campaigns.sweep",
                    [name, "--seeds", str(SWEEP_SEEDS_QUICK if quick else SWEEP_SEEDS),
@@ -105,15 +115,20 @@ def plan(out: Path, quick: bool) -> list[Step]:
     return steps
 
 
+def cores() -> int:
+    """The cores this process may run on."""
+    import os
+
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+               else os.cpu_count() or 1)
+
+
 def sweep_workers() -> int | None:
     """Worker processes of the sweeps: one per core when dask's ``distributed`` is installed
     (``None``, in this process, otherwise)."""
-    import os
-
     if importlib.util.find_spec("distributed") is None:
         return None
-    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-               else os.cpu_count() or 1)
+    return cores()
 
 
 def run_step(step: Step, log_dir: Path) -> None:
@@ -138,6 +153,36 @@ def run_step(step: Step, log_dir: Path) -> None:
         step.status, step.reason = "failed", f"{type(err).__name__}: {err}"
     step.seconds = time.perf_counter() - started
     log.write_text(buffer.getvalue())
+
+
+def _run_step_in_child(step: Step, log_dir: Path) -> Step:
+    run_step(step, log_dir)
+    return step
+
+
+def run_concurrently(steps: list[Step], log_dir: Path, on_done: Callable[[Step], None]) -> None:
+    """Run ``steps`` as :func:`run_step` does, in one fresh process per core (spawned: no state
+    of this process is inherited), in their order as processes free up; each step's status,
+    reason and seconds are copied back into it. One core: in this process, one by one."""
+    workers = min(len(steps), cores())
+    if workers <= 1:
+        for step in steps:
+            run_step(step, log_dir)
+            on_done(step)
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(_run_step_in_child, step, log_dir): step for step in steps}
+        for future in as_completed(futures):
+            step = futures[future]
+            try:
+                done = future.result()
+                step.status, step.reason, step.seconds = done.status, done.reason, done.seconds
+            except Exception as err:  # the child process died (run_step itself never raises)
+                step.status, step.reason = "failed", f"{type(err).__name__}: {err}"
+            on_done(step)
 
 
 def _last_line(text: str) -> str:
@@ -183,7 +228,11 @@ def _paper_section(name: str, out: Path, steps: dict[str, Step]
         summary += f"; {held_physics} of {len(physics['claims'])} on MuJoCo"
         lines.append(f"On MuJoCo: {held_physics} of {len(physics['claims'])} "
                      f"({physics_step.seconds:.0f} s; {_plant_line(physics)}; what the plant "
-                     f"changes and why: [mujoco/{name}/{name}.md](mujoco/{name}/{name}.md)).")
+                     f"changes and why: [mujoco/{name}/{name}.md](mujoco/{name}/{name}.md))"
+                     + ("; it ran beside another MuJoCo study, one per core, so its timing "
+                        "claims (ticks timed on the kinematic plant) are the kinematic "
+                        "column's to read" if physics_step.concurrent and cores() > 1 else "")
+                     + ".")
     else:
         lines.append("On MuJoCo: not run — " + (physics_step.reason if physics_step else
                                                 "not part of this run") + ".")
@@ -387,9 +436,25 @@ def main(argv: list[str] | None = None) -> int:
     log_dir.mkdir()
     steps = plan(args.out, args.quick)
     started = time.perf_counter()
-    for done, step in enumerate(steps, start=1):
-        run_step(step, log_dir)
-        report_progress(done, len(steps), f"{step.name}: {step.status} ({step.seconds:.0f} s)")
+    finished: list[Step] = []
+
+    def progress(step: Step) -> None:
+        finished.append(step)
+        report_progress(len(finished), len(steps),
+                        f"{step.name}: {step.status} ({step.seconds:.0f} s)")
+
+    k = 0
+    while k < len(steps):
+        group = [steps[k]]
+        while steps[k].concurrent and k + len(group) < len(steps) \
+                and steps[k + len(group)].concurrent:
+            group.append(steps[k + len(group)])
+        if len(group) > 1:
+            run_concurrently(group, log_dir, progress)
+        else:
+            run_step(group[0], log_dir)
+            progress(group[0])
+        k += len(group)
     strips = render_strips(args.out, args.quick)
     report = write_report(args.out, steps, args.quick, strips)
     failed = [s.name for s in steps if s.status == "failed"]
