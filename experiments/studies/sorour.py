@@ -19,6 +19,18 @@ On MuJoCo (``--plant mujoco``) there is no ``SteerableDrive``: a copy of the sam
 controller (:class:`SteeredJoints`) turns the commanded base twist into the steer and drive
 rates of the MPO700's real steer and drive joints (``Simulation(command="joints")``), and the
 base moves as its wheels on the floor make it.
+
+The runs use the controllers' ordinary path (``fused=False``: the steering controller's ICR QP
+and eq. 14 on the Python backend, the stack fused on daqp as always), the path their documented
+numbers came from: the compensated run is chaotic — moving the start's second arm joint by
+1e-12 rad flips two claims — so the fast path (:mod:`wbc.papers.sorour.controller`), equal to
+it tick by tick to 7.4e-10 on these runs (``tests/test_sorour_fast.py``), would move the claims
+as any change of rounding does.
+
+Timing (not with ``main_only``): the compensated controller's full tick per backend over 200
+states of the daqp run; on daqp the default (fast) controller interleaved tick by tick with
+``fused=False`` (:func:`interleaved_timing`: ``timing["daqp"]["ordinary_tick_median_s"]`` and
+the largest command difference).
 """
 
 from __future__ import annotations
@@ -52,6 +64,7 @@ from .study import (
     Claim,
     StudyOptions,
     StudyResult,
+    interleaved_timing,
     make_plant,
     plant_timing,
     replay_timing,
@@ -160,7 +173,7 @@ def base_steering(robot, backend: str, options: StudyOptions) -> SteerableContro
                                steer_rate=value("steer_rate_max"),
                                steer_acceleration=value("steer_acceleration_max"),
                                icr_gain=value("icr_gain"), drive_gain=value("Kp"),
-                               backend=backend)
+                               backend=backend, fused=False)  # the runs' path (module docstring)
 
 
 class SteeredJoints:
@@ -224,7 +237,7 @@ def simulate(robot, variant: str, backend: str, q0: np.ndarray, seconds: float,
              options: StudyOptions = DOCUMENTED, poses=POSES):
     """One run of ``variant`` from ``q0`` for ``seconds`` [s] towards the schedule ``poses`` on
     the plant of ``options`` (the steering constants from its ``params``)."""
-    controller = SorourController(robot, variant, backend)
+    controller = SorourController(robot, variant, backend, fused=False)  # (module docstring)
     # its next-sample prediction (eq. 14) must use the base's steering constants
     controller.steering = base_steering(robot, backend, options)
 
@@ -392,10 +405,29 @@ def claims(runs: dict, parameters: dict = PARAMETERS) -> list[Claim]:
 def timing(robot, states: list, backends, budget_s: float) -> tuple[dict, list[str]]:
     """Full tick (eq. 9 stack + ICR QP + eq. 14 QP) of the compensated controller per backend,
     replayed over ``states`` (``(q, target)`` pairs of the daqp run), at most ``budget_s`` of
-    wall time per backend. Returns the timing table and the backends that failed."""
-    return replay_timing(backends, lambda backend: SorourController(robot, "compensated", backend),
-                         states, lambda control, state: control.step(state[0], ee=state[1]),
-                         budget_s, ("icr_qp_median_s", lambda c: c.tick_parts["icr_qp"]))
+    wall time per backend; ``"icr_qp_median_s"``: the steering controller's share
+    (``tick_parts["icr_qp"]``; on the fast path the one generated call after the stack). daqp's
+    default (fast) controller is timed interleaved with ``fused=False`` (:func:`interleaved_timing`,
+    the steering state reset before each pass), which adds ``"ordinary_tick_median_s"``,
+    ``"ordinary_tick_p95_s"`` and ``"max_command_difference"``. Returns the timing table and
+    the backends that failed."""
+    def icr_qp(control: SorourController) -> float:
+        return control.tick_parts["icr_qp"]
+
+    others = [backend for backend in backends if backend != "daqp"]
+    timings, failures = replay_timing(
+        others, lambda backend: SorourController(robot, "compensated", backend), states,
+        lambda control, state: control.step(state[0], ee=state[1]), budget_s,
+        ("icr_qp_median_s", icr_qp))
+    if "daqp" in backends:
+        daqp = interleaved_timing(SorourController(robot, "compensated"),
+                                  SorourController(robot, "compensated", fused=False),
+                                  [(q, None, {"ee": target}) for q, target in states],
+                                  budget_s=budget_s, share=icr_qp,
+                                  reset=lambda control: control.steering.reset())
+        daqp["icr_qp_median_s"] = daqp.pop("qp_median_s")
+        timings = {"daqp": daqp, **timings}
+    return timings, failures
 
 
 def figures(runs: dict, out_dir: Path) -> list[str]:
@@ -545,9 +577,20 @@ def run(backend: str, out_dir: Path, quick: bool,
         backends = [backend] if quick else available_backends()
         timings, failures = timing(robot, states, backends, 0.5 if quick else 2.0)
         summary += "\n".join(
-            ["", "ICR QP alone (median over the replayed ticks):", "",
-             "| backend | ICR QP median [µs] |", "|---|---:|"]
-            + [f"| {b} | {1e6 * t['icr_qp_median_s']:.0f} |" for b, t in timings.items()])
+            ["", "The steering controller's share (its ICR QP; on daqp's fast path the one "
+             "generated call after the stack: steering, ψ and eq. 14), median over the "
+             "replayed ticks:", "", "| backend | ICR QP median [µs] |", "|---|---:|"]
+            + [f"| {b} | {1e6 * t['icr_qp_median_s']:.1f} |" for b, t in timings.items()])
+        if "daqp" in timings:
+            t = timings["daqp"]
+            summary += (
+                f"\n\ndaqp, interleaved over the same states: the default (fast) path "
+                f"{1e6 * t['tick_median_s']:.1f} µs median (p95 {1e6 * t['tick_p95_s']:.1f}), "
+                f"the ordinary path (`fused=False`) {1e6 * t['ordinary_tick_median_s']:.1f} µs "
+                f"(p95 {1e6 * t['ordinary_tick_p95_s']:.1f}): "
+                f"{t['tick_median_s'] / t['ordinary_tick_median_s']:.2f}×; commands at most "
+                f"{t['max_command_difference']:.1e} apart. The runs above use the ordinary "
+                "path (see the study's docstring).\n")
         names = figures(runs, Path(out_dir))
     return StudyResult(
         name="sorour", claims=claims(runs, parameters), runs={"table_ii": runs},

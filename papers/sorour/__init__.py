@@ -11,8 +11,11 @@ What lives where:
 * :mod:`~wbc.papers.sorour.steering` — the base's ICR steering controller
   (:class:`SteerableController`) and the plant driving the base through it
   (:class:`SteerableDrive`, a ``wbc.sim`` actuation);
+* :mod:`~wbc.papers.sorour.steering_code` — the steering controller's tick as one CasADi
+  function (:func:`steering_function`, its ICR QP in closed form), for the fast paths' generated
+  C code;
 * :mod:`~wbc.papers.sorour.controller` — the whole-body controller of §V in its three variants
-  (:class:`SorourController`) and Table I (:data:`PARAMETERS`);
+  (:class:`SorourController`, with its fast path) and Table I (:data:`PARAMETERS`);
 * :mod:`~wbc.papers.sorour.closed_form` — the closed forms (eqs. 9, 11, 14), test oracles of
   the QP forms (also in :mod:`wbc.solvers.reference`).
 
@@ -43,6 +46,7 @@ from .steering import (
     scale_into,
     steering_of_icr,
 )
+from .steering_code import steering_function
 from .task_sharing import (
     ArmCompensation,
     DexterousPosture,
@@ -70,6 +74,7 @@ __all__ = [
     "sharing_factor",
     "sharing_mobility",
     "steering_controller",
+    "steering_function",
     "steering_of_icr",
     "task_sharing_factor",
     "task_sharing_velocity",

@@ -50,6 +50,13 @@ The tick (:meth:`SteerableController.step`), for a desired twist ``ξ*``:
    limits the paper's controller respects; scaling keeps the ICR). ``ξ̂`` is then ``q̇_bf``
    (the wheels are assumed to track their rates).
 6. Wheel rates by the inverse actuation model.
+
+The fast path (``SteerableController(fused="auto")``, the default with a C compiler): the whole
+tick as one generated C function (:func:`~wbc.papers.sorour.steering_code.steering_function`),
+its ICR QP in closed form where that is the ordinary path's answer; the other ticks (relaxed
+accelerations, near-ties the ordinary path's daqp may break either way) take the ordinary path,
+whose QP is a :class:`wbc.Stack` on ``backend`` (``fused=False`` always). See
+:mod:`wbc.papers.sorour.steering_code`.
 """
 
 from __future__ import annotations
@@ -61,11 +68,14 @@ from dataclasses import dataclass
 import numpy as np
 
 import wbc
+from wbc.cbuild import compiled_c, compiler_available
 from wbc.checks import checked_number, checked_vector
 from wbc.errors import InvalidValueError
 from wbc.qp import Status
 from wbc.robots.steerable import SteerableBase
 from wbc.sim.actuation import Actuation
+
+from .steering_code import steering_function
 
 __all__ = ["MPO700_STEER_LIMITS", "SteerStep", "SteerableController", "SteerableDrive",
            "drive_rates", "icr_of_twist", "scale_into", "steering_of_icr"]
@@ -115,6 +125,10 @@ def scale_into(twist, limits) -> np.ndarray:
     twist = np.asarray(twist, dtype=float)
     ratio = np.max(np.abs(twist) / np.asarray(limits, dtype=float))
     return twist / ratio if ratio > 1.0 else twist.copy()
+
+
+#: the route of :class:`SteerStep` by the generated tick's route code
+_ROUTES = ("none", "direct", "complementary")
 
 
 def _wrap_half(angle):
@@ -174,13 +188,25 @@ class SteerableController:
         backend: QP backend of the ICR QP; profile: its tolerance profile.
         steering: initial steering angles [rad] (default: zeros, i.e. the ICR of a pure
             forward translation).
+        fused: the fast path (module docstring): ``"auto"`` (default) on daqp with a C
+            compiler, ``True`` the same or an error, ``False`` the ordinary path only.
+
+    Attributes:
+        state: ``[β (N) [rad], β̇ (N) [rad/s], ξ̂ (3), X (3)]``, the controller's state, which
+            :attr:`steering`, :attr:`steer_rates`, :attr:`twist` and :attr:`icr` are views of
+            (each tick writes it in place).
+        constants: ``[t_s, β̇max, β̈max, λ_ICR, K_p, d, r_w, v_max (3), hips (N × 2)]``, the
+            generated tick's constants.
+        fused: whether the fast path is on; fallback_steps: its ticks the ordinary path took.
     """
 
     def __init__(self, base: SteerableBase, dt: float = 0.025,
                  steer_rate: float = MPO700_STEER_LIMITS[0],
                  steer_acceleration: float = MPO700_STEER_LIMITS[1], icr_gain: float = 10.0,
                  drive_gain: float = 2.0, backend: str = "daqp", profile: str = "default",
-                 steering=None) -> None:
+                 steering=None, fused: bool | str = "auto") -> None:
+        if fused not in (True, False, "auto"):
+            raise InvalidValueError(f"fused must be True, False or 'auto', got {fused!r}")
         dt = checked_number(dt, "dt", strict=True)
         steer_rate = checked_number(steer_rate, "steer_rate", strict=True)
         steer_acceleration = checked_number(steer_acceleration, "steer_acceleration", strict=True)
@@ -217,23 +243,94 @@ class SteerableController:
         self._A, self._b = view("icr_ref.A"), view("icr_ref.b")
         self._rows = {name: (view(f"{name}.C"), view(f"{name}.upper"))
                       for name in ("steer_acceleration", "steer_rate")}
+        self.state = np.zeros(2 * n + 6)
+        self.constants = np.concatenate([
+            [self.dt, self.steer_rate, self.steer_acceleration, self.icr_gain, self.drive_gain,
+             base.offset, base.radius], base.v_max, self.hips.ravel()]).astype(float)
         self.reset(steering)
+        self.fallback_steps = 0
+        self.fused = self._fast_path(fused, backend)
+
+    def _fast_path(self, fused, backend: str) -> bool:
+        """Bind the generated tick to this controller's buffers if ``fused`` allows it."""
+        reason = ("turned off (fused=False)" if fused is False else
+                  f"the backend is {backend!r}; the fast path replaces daqp's QP"
+                  if backend != "daqp" else
+                  None if compiler_available() else "no C compiler found ($CC, default cc)")
+        if reason is not None:
+            if fused is True:
+                raise wbc.WbcError(f"fused=True, but the steering controller cannot take the "
+                                   f"fast path: {reason}")
+            return False
+        n = self.base.n_wheels
+        self._desired, self._next = np.zeros(3), np.zeros(2 * n + 6)
+        self._accelerations, self._wheels, self._info = np.zeros(n), np.zeros(n), np.zeros(3)
+        self._buffer, self._call = compiled_c(steering_function(n)).buffer()
+        # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res)
+        for i, array in enumerate((self._desired, self.state, self.constants)):
+            self._buffer.set_arg(i, memoryview(array))  # type: ignore[call-arg, arg-type]
+        for i, array in enumerate((self._next, self._accelerations, self._wheels, self._info)):
+            self._buffer.set_res(i, memoryview(array))  # type: ignore[call-arg, arg-type]
+        return True
+
+    @property
+    def steering(self) -> np.ndarray:
+        """Steering angles β [rad] (N,), a view of :attr:`state`."""
+        return self.state[:self.base.n_wheels]
+
+    @property
+    def steer_rates(self) -> np.ndarray:
+        """β̇ of the last tick [rad/s] (N,), a view of :attr:`state`."""
+        n = self.base.n_wheels
+        return self.state[n:2 * n]
+
+    @property
+    def twist(self) -> np.ndarray:
+        """The last feasible twist ``ξ̂`` [m/s, m/s, rad/s], a view of :attr:`state`."""
+        n = self.base.n_wheels
+        return self.state[2 * n:2 * n + 3]
+
+    @property
+    def icr(self) -> np.ndarray:
+        """The homogeneous ICR ``X`` (3,), a view of :attr:`state`."""
+        return self.state[2 * self.base.n_wheels + 3:]
 
     def reset(self, steering=None) -> None:
         """Back to rest with the given steering angles [rad] (default zeros)."""
         n = self.base.n_wheels
-        self.steering = (np.zeros(n) if steering is None
-                         else checked_vector(steering, n, "steering", broadcast=False).copy())
-        self.steer_rates = np.zeros(n)
-        self.twist = np.zeros(3)
+        angles = (np.zeros(n) if steering is None
+                  else checked_vector(steering, n, "steering", broadcast=False))
+        self.state[:n] = angles
+        self.state[n:2 * n + 3] = 0.0  # at rest
         # the ICR of the steering: forward translation for zeros
-        self.icr = _icr_of_steering(self.hips, self.steering)
+        self.icr[...] = _icr_of_steering(self.hips, angles)
         self.acceleration_relaxed = 0
 
     # ------------------------------------------------------------------ the tick
     def step(self, desired_twist) -> SteerStep:
         """One sample period for the desired body twist ``ξ*`` [m/s, m/s, rad/s]."""
-        target = icr_of_twist(checked_vector(desired_twist, 3, "desired_twist", broadcast=False))
+        if self.fused:
+            self._desired[...] = checked_vector(desired_twist, 3, "desired_twist",
+                                                broadcast=False)
+            t0 = time.perf_counter()
+            self._call()
+            qp_s = time.perf_counter() - t0
+            if self._info[0] == 1.0:
+                relaxed = bool(self._info[2])
+                self.state[...] = self._next
+                self.acceleration_relaxed += relaxed
+                return SteerStep(self.twist.copy(), self.steering.copy(),
+                                 self.steer_rates.copy(), self._accelerations.copy(),
+                                 self._wheels.copy(), self.icr.copy(),
+                                 _ROUTES[int(self._info[1])], "solved", relaxed, qp_s)
+            self.fallback_steps += 1
+        return self.ordinary_step(desired_twist)
+
+    def ordinary_step(self, desired_twist) -> SteerStep:
+        """:meth:`step` on the ordinary path whatever :attr:`fused` is: numpy around the ICR
+        QP on the backend (what the fast path hands a tick to)."""
+        desired_twist = checked_vector(desired_twist, 3, "desired_twist", broadcast=False)
+        target = icr_of_twist(desired_twist)
         x = self.icr
         route, x_ref = "none", x  # no desired ICR: hold it (the steering decelerates)
         if target is not None:
@@ -263,7 +360,7 @@ class SteerableController:
         feasible = scale_into(direction * float(direction @ initial), self.base.v_max)
         wheels = drive_rates(self.hips, self.base.offset, self.base.radius, beta, rates,
                              feasible)
-        self.steering, self.steer_rates, self.twist, self.icr = beta, rates, feasible, x_next
+        self.state[...] = np.concatenate([beta, rates, feasible, x_next])
         self.acceleration_relaxed += relaxed
         return SteerStep(feasible.copy(), beta.copy(), rates.copy(), accelerations, wheels,
                          x_next.copy(), route, status, relaxed, qp_s)
