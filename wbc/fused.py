@@ -140,7 +140,15 @@ What stays in Python, and why
 * **Task-scaling LPs** (``stack.add(..., scaling=True)``): a stack with a scaling level keeps
   the ordinary path as a whole. The ordinary path compresses the task's equality rows by an
   SVD and declares the task inconsistent when its target leaves their range (a decision on the
-  data), and the LP's zero Hessian needs daqp's proximal-point iterations.
+  data), and the LP's zero Hessian needs daqp's proximal-point iterations. One such cascade
+  has a fast path of its own, AMP's (``wbc study xing``, :mod:`wbc.papers.xing.fast`: a
+  :class:`FusedWorkspace` whose generated tick it supplies through :meth:`_attach`): where its
+  3-row task is not saturated — ``s = 1``, decided exactly from the facets of the zonotope the
+  joint bounds map the task into — and its undamped levels reach zero, the cascade's answer is
+  one strictly convex QP; the other ticks stay on the ordinary path, because there the
+  ordinary path is not exact (its undamped levels, on daqp's proximal iterations, are up to
+  1.3e-4 from the cascade's optimum and depend on the ticks before), so no exact tick equals
+  it.
 * **Singular Hessians.** The generated daqp's proximal iterations are off (``eps_prox = 0``,
   see below), so its setup refuses a level whose Hessian is singular (``damping`` 0 and a
   rank-deficient task) and that tick takes the ordinary path — correct, only slower. (On 200
@@ -167,7 +175,11 @@ included; but on the AMP stack of ``wbc study xing`` (mecanum_gen3, 1000 random 
 study's own state sampler) the fused command differed from the ordinary one by more than 1e-6
 in 84 states with the ``"tight"`` profile (at most 3.8e-3) and 341 with the default one (at
 most 4.7): at saturated vertices a level solved to the proximal tolerance (level 0 left
-≈ 1e-6 from its optimum) lets the levels below move far. Not exact: not fused.
+≈ 1e-6 from its optimum) lets the levels below move far. Not exact: not fused. An exact
+cascade instead (``s`` as a ratio over the zonotope's facets, the undamped levels as strictly
+convex QPs over its half-spaces) equals the ordinary path where the task is not saturated and
+misses it by up to 1.3e-4 where it is (30 of 293 saturated states, the ordinary path the
+inexact one): AMP's fast path answers only the former (:mod:`wbc.papers.xing.fast`).
 
 Differences from the backend path
 ---------------------------------
@@ -248,6 +260,10 @@ class FusedWorkspace(Workspace):
             else (no checks, no solution) — what benchmarks compare a tick with.
     """
 
+    #: The back-off's longest run of skipped ticks (module docstring); a subclass whose failed
+    #: call costs little may lower it (0: always try).
+    max_skipped_ticks = MAX_SKIPPED_TICKS
+
     def __init__(self, compiled: CompiledStack, profile: str = "default",
                  warm_start: bool = True, compile: bool = True, **options) -> None:
         super().__init__(compiled, "daqp", profile, warm_start, **options)
@@ -258,44 +274,54 @@ class FusedWorkspace(Workspace):
         if compile:
             function = compiled_c(function, DEFAULT_FLAGS, daqp_link_arguments(),
                                   initialise_success)
-        self.function = function
-        self.fallback_solves = 0  # ticks the generated daqp did not solve
-        self.skipped_solves = 0  # ticks the ordinary path took without trying the fused call
         self._qps: ca.Function | None = None  # fused_qps, made when last_qps first asks
-        self._buffer, self._evaluate = function.buffer()
-        self.bare_call = self._evaluate  # the generated function alone, for benchmarks
         n, blocks = compiled.n, compiled.blocks
-        self._x = np.zeros(n)
-        level_x = [np.zeros(n) for _ in blocks[:-1]] + [self._x]
-        # Reading the call's return code through SWIG costs ≈ 0.8 µs; instead, "done" is set to
-        # NaN before each call and only a solved call overwrites it (with the finite cost).
-        done = np.zeros(1)
+        x = np.zeros(n)
+        level_x = [np.zeros(n) for _ in blocks[:-1]] + [x]
         self._results = [QPResult(np.zeros(b.n_z), Status.SOLVED,
                                   np.zeros(b.m_top + b.n_frozen_soft + b.n_frozen_cost),
                                   np.zeros(b.n_z)) for b in blocks]
-        outputs = [self._x, done]
+        outputs = [x, np.zeros(1)]
         for i, result in enumerate(self._results):
             outputs += [level_x[i]] if i < len(blocks) - 1 else []
             outputs += [result.x, result.y, result.z]
+        band = FROZEN_BAND
+        # frozen_rank −1: the fused tick keeps every frozen row and computes no rank
+        solution = Solution(
+            x, Status.SOLVED,
+            [LevelResult(b.label, Status.SOLVED, level_x[i], -1 if b.n_frozen_cost else 0,
+                         -1, "", band if b.n_frozen_cost else 0.0)
+             for i, b in enumerate(blocks)],
+            compiled.variables, {}, Timings(),
+            task_residuals=None if compiled.residuals is None
+            else TaskResiduals(compiled, self.p, x))
+        self._attach(function, outputs, solution)
+
+    def _attach(self, function: ca.Function, outputs: list[np.ndarray],
+                solution: Solution) -> None:
+        """Make ``function`` (``p -> (x, done, ...)``, C or CasADi's virtual machine) this
+        workspace's tick: it reads the workspace's ``p`` and writes its outputs into
+        ``outputs`` (``outputs[0]`` is ``solution.x``, ``outputs[1]`` the one-entry ``done``,
+        finite only when the call answered the tick); ``solution`` is what an answered tick
+        returns. Subclasses that generate a tick of their own call it from their
+        ``__init__`` (:class:`wbc.papers.xing.fast.AMPFastWorkspace`)."""
+        self.function = function
+        self.fallback_solves = 0  # ticks the generated daqp did not solve
+        self.skipped_solves = 0  # ticks the ordinary path took without trying the fused call
+        self._buffer, self._evaluate = function.buffer()
+        self.bare_call = self._evaluate  # the generated function alone, for benchmarks
         # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res, and
         # numpy's, for Python < 3.12, no buffer protocol of ndarray)
         self._buffer.set_arg(0, memoryview(self.p))  # type: ignore[call-arg, arg-type]
         for i, out in enumerate(outputs):
             if out.size:
                 self._buffer.set_res(i, memoryview(out))  # type: ignore[call-arg, arg-type]
-        # items as Python floats: cheaper than numpy scalars
-        self._done = memoryview(done)  # type: ignore[arg-type]
-        self._timings = Timings()
-        band = FROZEN_BAND
-        # frozen_rank −1: the fused tick keeps every frozen row and computes no rank
-        self._solution = Solution(
-            self._x, Status.SOLVED,
-            [LevelResult(b.label, Status.SOLVED, level_x[i], -1 if b.n_frozen_cost else 0,
-                         -1, "", band if b.n_frozen_cost else 0.0)
-             for i, b in enumerate(blocks)],
-            compiled.variables, {}, self._timings,
-            task_residuals=None if compiled.residuals is None
-            else TaskResiduals(compiled, self.p, self._x))
+        # Reading the call's return code through SWIG costs ≈ 0.8 µs; instead, "done" is set to
+        # NaN before each call and only a solved call overwrites it (with the finite cost).
+        # Items as Python floats: cheaper than numpy scalars.
+        self._done = memoryview(outputs[1])  # type: ignore[arg-type]
+        self._timings = solution.timings
+        self._solution = solution
         self._no_qps: list = []  # self._solved after a fused tick: no backend solved a QP
         self._solve = self._solve_function()
 
@@ -327,6 +353,7 @@ class FusedWorkspace(Workspace):
         workspace, unset, call, done = self, self._unset, self._evaluate, self._done
         solution, timings, no_qps = self._solution, self._timings, self._no_qps
         ordinary, clock, nan = super().solve, time.perf_counter, math.nan
+        most = self.max_skipped_ticks
         failures = 0  # consecutive failed fused calls
         skip = 0  # ticks left that take the ordinary path without trying the fused call
         fused_last = False  # the last tick was the fused call's (self._solved is no_qps)
@@ -357,7 +384,7 @@ class FusedWorkspace(Workspace):
                     return solution
                 workspace.fallback_solves += 1
                 failures += 1
-                skip = min(2 ** (failures - 1) - 1, MAX_SKIPPED_TICKS)
+                skip = min(2 ** (failures - 1) - 1, most)
             # the ordinary path (the model stage ended at t0: before the failed call, if any)
             fused_last = False
             answer = ordinary()

@@ -44,6 +44,7 @@ import casadi as ca
 import numpy as np
 
 import wbc.robots as robots
+from wbc.fused import FusedWorkspace
 from wbc.papers.xing import (
     DT,
     POSE,
@@ -69,6 +70,7 @@ from .study import (
     Claim,
     StudyOptions,
     StudyResult,
+    interleaved_timing,
     make_plant,
     plant_timing,
     save_figure,
@@ -604,7 +606,9 @@ def run(backend: str, out_dir: Path, quick: bool,
     scenarios = {"circle_r010": (circle(x0, radius_small, rotation0), long, position),
                  "circle_r025": (circle(x0, radius_large, rotation0), long, position),
                  "pose": (swing(x0, rotation0), short, pose)}
-    jit = not quick  # quick runs (tests) skip the C builds: same values, slower ticks
+    # quick runs (tests) skip the level functions' C builds: same values, slower ordinary
+    # ticks (the fast path's one C function is built either way, and cached)
+    jit = not quick
     record = not options.main_only
     runs: dict = {}
     main_runs = []  # the wbc.sim.Run objects, for the plant's step timing
@@ -635,11 +639,12 @@ def run(backend: str, out_dir: Path, quick: bool,
         timing_seconds = 2.0 if quick else 6.0
         # the controller's tick does not depend on the plant: timed on the kinematic one
         kinematic = replace(options, plant="kinematic")
+        reference = circle(x0, radius_large, rotation0)
         for name in available_backends():
             try:
-                s, _ = simulate(robot, amp_controller(robot, position, name, jit=jit),
-                                circle(x0, radius_large, rotation0), timing_seconds, position,
-                                start, kinematic, record=False)
+                s, timed = simulate(robot, amp_controller(robot, position, name, jit=jit),
+                                    reference, timing_seconds, position, start, kinematic,
+                                    record=False)
             except Exception as error:  # a backend that cannot run the cascade at all
                 failures.append(f"timing on {name}: {type(error).__name__}: {error}")
                 continue
@@ -647,6 +652,12 @@ def run(backend: str, out_dir: Path, quick: bool,
             timing[name]["failed_ticks"] = int(s["failures"])
             split[name] = {k: float(np.median(s[k]))
                            for k in ("model_s", "assembly_s", "solve_s")}
+            if name == "daqp":
+                timing[name] = {**_fast_against_ordinary(robot, position, jit, timed, reference,
+                                                         quick),
+                                "simulation_tick_median_s": timing[name]["tick_median_s"],
+                                "simulation_tick_p95_s": timing[name]["tick_p95_s"],
+                                "failed_ticks": timing[name]["failed_ticks"]}
         loops = bounds_loops(2_000 if quick else 10_000)
         eq = equivalence(robot, 100 if quick else 1000, jit=jit, setup=position)
     moving = value("moving_threshold")
@@ -671,16 +682,39 @@ def run(backend: str, out_dir: Path, quick: bool,
         parameters["draw"] = {"q0_jitter": start.q0 - robot.neutral(),
                               "noise_seed": start.noise_seed}
     return StudyResult("xing", claims, runs, timing, figures,
-                       _summary(split, eq, loops, position, pose, moving, start, runs,
-                                options),
+                       _summary(split, timing.get("daqp"), eq, loops, position, pose, moving,
+                                start, runs, options),
                        parameters, failures, replays=replays, robot=ROBOT, options=options,
                        plant_timing=plant_timing(options, 0.0, main_runs))
 
 
-def _summary(split: dict, eq: dict | None, loops: dict | None, position: Setup, pose: Setup,
-             moving: float, start: Staging, runs: dict, options: StudyOptions) -> str:
+TIMING_PASSES = 4
+"""Passes over the timing run's states of daqp's interleaved timing (one in a quick run)."""
+
+
+def _fast_against_ordinary(robot, setup: Setup, jit: bool, timed, reference, quick: bool) -> dict:
+    """daqp's tick on the fast path (the default, :mod:`wbc.papers.xing.fast`) against the same
+    controller with ``fused=False``, interleaved tick by tick over the states ``timed`` (a
+    :class:`wbc.sim.Run`) saw (:func:`interleaved_timing`), with the ticks the fast path left
+    to the ordinary one (``"fast_path_fallbacks"``: saturated and other refused ticks)."""
+    states = [(q, v, reference(t)) for q, v, t in
+              zip(timed.q_est, timed.v_est, timed.t, strict=True)]
+    fast = amp_controller(robot, setup, "daqp", jit=jit)
+    ordinary = amp_controller(robot, setup, "daqp", jit=jit, fused=False)
+    out = interleaved_timing(fast, ordinary, states, passes=1 if quick else TIMING_PASSES,
+                             warm_up=5)
+    workspace = fast.workspace
+    if isinstance(workspace, FusedWorkspace):
+        out["fast_path_fallbacks"] = workspace.fallback_solves + workspace.skipped_solves
+    return out
+
+
+def _summary(split: dict, daqp: dict | None, eq: dict | None, loops: dict | None,
+             position: Setup, pose: Setup, moving: float, start: Staging, runs: dict,
+             options: StudyOptions) -> str:
     """The summary in markdown: models and choices (per plant), and the side campaigns' and
-    the timing's results when they ran."""
+    the timing's results when they ran (``daqp``: daqp's timing, fast path against
+    ordinary)."""
     if options.plant == "kinematic":
         scale = ", ".join(f"{100 * x:+.3g} %".replace("-", "−") for x in start.scale)
         base = f"""* Base: commanded at the velocity level (integral of q̈), executed with scale
@@ -728,15 +762,31 @@ base at its transition value as far as the largest task scale allows, and SNS sc
 tertiary objective by one β where the QP projects it onto the bounds. The task scale of the
 QP is never below SNS's.""")
     if split:
-        daqp = split.get("daqp", {})
+        lines.append("\n## Timing")
+    if daqp is not None and "ordinary_tick_median_s" in daqp:
+        fast, ordinary = daqp["tick_median_s"], daqp["ordinary_tick_median_s"]
+        fallbacks = daqp.get("fast_path_fallbacks")
+        handed = ("the fast path did not apply (no C compiler)" if fallbacks is None else
+                  f"{fallbacks} of its ticks (every pass) left to the ordinary path")
         lines.append(f"""
-## Timing
-
-Median split of the daqp tick [µs]: model {1e6 * daqp.get('model_s', float('nan')):.1f},
-assembly {1e6 * daqp.get('assembly_s', float('nan')):.1f}, solve
-{1e6 * daqp.get('solve_s', float('nan')):.1f} (compiled kinematics and JIT: the model stage
-only writes q, v; the four QPs of the cascade — scaling LP, level 0 with s fixed, base level,
-manipulability level — dominate).""")
+daqp's tick on the fast path (the default, `wbc.papers.xing.fast`: where the task is not
+saturated, the cascade's answer is one strictly convex QP, solved with the model, the bounds
+and the tests that tell such a tick in one generated C function; the ordinary path — Python
+around the four QPs: scaling LP, level 0 with s fixed, base level, manipulability level —
+answers the other ticks) against the same controller with `fused=False`, interleaved tick by
+tick over the timing run's states ({daqp['passes']} pass(es)): median {1e6 * fast:.1f} µs (p95
+{1e6 * daqp['tick_p95_s']:.1f}) against {1e6 * ordinary:.1f} µs (p95
+{1e6 * daqp['ordinary_tick_p95_s']:.1f}), {fast / ordinary:.2f}×; the commands at most
+{daqp['max_command_difference']:.1e} apart; {handed}. In the simulation loop: median
+{1e6 * daqp['simulation_tick_median_s']:.1f} µs.""")
+    if split:
+        split_daqp = split.get("daqp", {})
+        lines.append(f"""
+Median split of daqp's tick in the simulation loop [µs]: model
+{1e6 * split_daqp.get('model_s', float('nan')):.1f}, assembly
+{1e6 * split_daqp.get('assembly_s', float('nan')):.1f}, solve
+{1e6 * split_daqp.get('solve_s', float('nan')):.1f} (compiled kinematics: the model stage only
+writes q, v; on the fast path the generated call is the solve, and assembly 0).""")
     return "\n".join(lines) + "\n"
 
 

@@ -8,6 +8,10 @@ What lives where:
 * :mod:`~wbc.papers.xing.stacks` — AMP as a QP cascade: :func:`amp_stack`,
   :func:`add_amp_levels`, :func:`amp_controller`, the planner's parameters (:class:`Setup`,
   :data:`POSITION`, :data:`POSE`);
+* :mod:`~wbc.papers.xing.fast` — the controller's fast path: where the task is not saturated,
+  the cascade's answer as one strictly convex QP in generated C (:class:`AMPController`,
+  :class:`AMPFastWorkspace`, :func:`unsaturated_tick`, the zonotope test
+  :func:`zonotope_interior`); the ordinary path answers the other ticks;
 * :mod:`~wbc.papers.xing.planner` — the paper's planners in closed form, in closed loop
   (:class:`ClosedFormPlanner`);
 * :mod:`~wbc.papers.xing.plant` — the base's velocity-level actuation with odometry error
@@ -32,6 +36,18 @@ from .closed_form import (
     scaling_factor,
     traditional,
 )
+from .fast import (
+    INTERIOR_MARGIN,
+    PARALLEL,
+    RANK_MARGIN,
+    AMPController,
+    AMPFastWorkspace,
+    fast_qp,
+    full_rank,
+    unsaturated_tick,
+    why_not_fast,
+    zonotope_interior,
+)
 from .planner import (
     ClosedFormPlanner,
 )
@@ -53,12 +69,17 @@ from .stacks import (
 )
 
 __all__ = [
+    "AMPController",
+    "AMPFastWorkspace",
     "AMPInfo",
     "ClosedFormPlanner",
     "CommandedVelocityOdometry",
     "DT",
+    "INTERIOR_MARGIN",
+    "PARALLEL",
     "POSE",
     "POSITION",
+    "RANK_MARGIN",
     "Setup",
     "add_amp_levels",
     "amp",
@@ -69,6 +90,8 @@ __all__ = [
     "base_transition",
     "base_transition_expression",
     "cartesian_command",
+    "fast_qp",
+    "full_rank",
     "manipulability_acceleration",
     "manipulability_gradient",
     "manipulability_hessian",
@@ -76,4 +99,7 @@ __all__ = [
     "scaling_factor",
     "symbolic_quantity",
     "traditional",
+    "unsaturated_tick",
+    "why_not_fast",
+    "zonotope_interior",
 ]

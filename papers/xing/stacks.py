@@ -35,6 +35,8 @@ from wbc.tasks.manipulability import (
 )
 from wbc.terms import Cost
 
+from .fast import AMPController
+
 __all__ = ["DT", "POSE", "POSITION", "Setup", "add_amp_levels", "amp_controller", "amp_stack",
            "base_slice", "base_transition_expression", "cartesian_command", "symbolic_quantity"]
 
@@ -147,8 +149,13 @@ def amp_stack(robot, setup: Setup = POSITION) -> wbc.Stack:
 
 
 def amp_controller(robot, setup: Setup = POSITION, backend: str = "daqp",
-                   profile: str = "default", jit: bool = True) -> wbc.Controller:
+                   profile: str = "default", jit: bool = True,
+                   fused: bool | str = "auto") -> AMPController:
     """AMP as a QP in a :class:`wbc.Controller` (compiled kinematics, JIT by default; a
-    failed solve decelerates within the bounds)."""
-    return wbc.Controller(robot, amp_stack(robot, setup), backend, profile, dt=setup.dt,
-                          fallback="decelerate", jit=jit)
+    failed solve decelerates within the bounds). ``fused``: AMP's fast path — the tick in
+    generated C where the task is not saturated, the ordinary path elsewhere
+    (:mod:`wbc.papers.xing.fast`): ``"auto"`` (default) where it applies (daqp, a position
+    task, a C compiler), ``True`` (required) or ``False`` (the ordinary path)."""
+    return AMPController(robot, amp_stack(robot, setup), base_slice(robot).stop, backend=backend,
+                         profile=profile, dt=setup.dt, fallback="decelerate", jit=jit,
+                         fused=fused)
