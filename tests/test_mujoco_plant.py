@@ -1,8 +1,12 @@
 """wbc.sim.MujocoPlant: the physics plant rolls the bases without slip when driven slowly, its
 arm servos track, the omni platform's wheels carry the weight the statics give, a wheel pushed
-past μ·f_n slips, and one controller object runs on both plants."""
+past μ·f_n slips, one controller object runs on both plants, and the compiled sub-steps give
+bitwise the states and signals of the Python loop (which runs where there is no compiler)."""
 
 from __future__ import annotations
+
+import re
+from types import MethodType
 
 import numpy as np
 import pytest
@@ -11,10 +15,11 @@ pytest.importorskip("mujoco", reason="MujocoPlant needs the mujoco package ([muj
 
 import wbc  # noqa: E402
 import wbc.robots  # noqa: E402
+from wbc import cbuild  # noqa: E402
 from wbc.errors import InvalidValueError, ShapeError, WbcError  # noqa: E402
 from wbc.robots.omni import ARM_MASS, PLATFORM_MASS, normal_forces, system_com  # noqa: E402
 from wbc.robots.resources import urdf_path  # noqa: E402
-from wbc.sim import Simulation, actuation, mjcf  # noqa: E402
+from wbc.sim import Simulation, actuation, mjcf, mujoco_substeps  # noqa: E402
 from wbc.sim.mujoco_plant import MujocoPlant  # noqa: E402
 from wbc.tasks import ConfigurationLimit, FrameTask, VelocityLimit  # noqa: E402
 
@@ -378,3 +383,172 @@ def test_a_chassis_inertia_short_of_the_triangle_inequality_is_lifted_to_a_physi
                        np.diag([0.1545, 0.1495, 0.304]))  # the same principal axes
     valid = rotation @ np.diag([0.2, 0.15, 0.3]) @ rotation.T
     assert np.array_equal(mjcf._physical(valid), valid)
+
+
+def reference_substeps(plant, start, slope):
+    """A period's sub-steps as ``MujocoPlant.step`` ran them in Python before the compiled loop
+    (the targets of unsteered wheels at once, a steered base's per sub-step): what the compiled
+    loop and the Python fallback must reproduce bit for bit."""
+    import mujoco
+
+    m, d, h, n = plant.model, plant.data, mjcf.TIMESTEP, plant._substeps
+    kind, nb = plant.command, plant.nv_base
+    steered = plant.kind == "steerable" and kind in ("velocity", "acceleration")
+    drives = None
+    if plant.base is not None and kind in ("velocity", "acceleration") and not steered:
+        ramp = np.arange(1, n + 1) * h if kind == "acceleration" else np.zeros(n)
+        targets = start + np.outer(ramp, slope if kind == "acceleration" else np.zeros(nb))
+        drives = targets @ plant._jacobian.T[:, plant._powered]
+    tau = np.zeros(m.nv)
+    limit, damping = plant.mjcf.arm_torque, m.dof_damping[plant._arm_v]
+    qpos_rows, qvel_rows, force_rows = plant._rows
+    for k in range(n):
+        if drives is not None:
+            d.ctrl[plant._wheel_u] = drives[k]
+        elif steered:
+            target = start + slope * (k + 1) * h if kind == "acceleration" else start
+            drive, steer = plant._wheel_rates(target)
+            d.ctrl[plant._wheel_u] = drive[plant._powered]
+            d.ctrl[plant._steer_u] = steer
+        if kind == "acceleration":
+            mujoco.mj_step1(m, d)
+            d.qacc[:] = plant._qacc  # the commanded accelerations the step assembled
+            mujoco.mj_rne(m, d, 1, tau)
+            torque = tau[plant._arm_v] + damping * d.qvel[plant._arm_v]
+            d.ctrl[plant._arm_u] = np.minimum(np.maximum(torque, -limit), limit)
+            mujoco.mj_step2(m, d)
+        else:
+            mujoco.mj_step(m, d)
+        qpos_rows[k] = d.qpos
+        qvel_rows[k] = d.qvel
+        force_rows[k] = d.qfrc_actuator
+
+
+def reference_plant(robot, **options) -> MujocoPlant:
+    """A plant that runs :func:`reference_substeps` instead of its own loops (when reset
+    without the compiled loop: :func:`assert_same_periods`)."""
+    plant = MujocoPlant(robot, **options)
+    plant._python_substeps = MethodType(reference_substeps, plant)
+    return plant
+
+
+def assert_bitwise(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def assert_same_periods(plant, reference, robot, kind, dt, periods, monkeypatch):
+    """``periods`` control periods of random commands (a random walk, large enough to saturate
+    joints, slip wheels and tip the omni platform) on ``plant`` and on the
+    :func:`reference_plant` from the same start: the same numbers to the bit."""
+    rng = np.random.default_rng(0)
+    q0 = robot.neutral()
+    q0[robot.nq - robot.n_arm:] += rng.uniform(-0.2, 0.2, robot.n_arm)
+    start = plant.reset(q0, np.zeros(robot.nv), dt, kind)
+    with monkeypatch.context() as patch:
+        patch.setattr(mujoco_substeps, "library", lambda: None)  # the reference's Python loop
+        for x, y in zip(start, reference.reset(q0, np.zeros(robot.nv), dt, kind), strict=True):
+            assert_bitwise(x, y)
+    assert not reference.compiled_substeps
+    size = {"torque": len(plant._wheel_v) + robot.n_arm,
+            "joints": len(plant._wheel_v) + len(plant._steer_v) + robot.n_arm}.get(kind, robot.nv)
+    scale = np.full(size, {"velocity": 0.4, "acceleration": 1.0, "torque": 6.0,
+                           "joints": 4.0}[kind])  # base velocities, wheel torques or rates
+    scale[size - robot.n_arm:] = 30.0 if kind == "acceleration" else 1.0  # the arm's
+    command = np.zeros(size)
+    clipped = 0.0  # the arm motors' saturation (acceleration commands: torques clipped)
+    for _ in range(periods):
+        command = 0.8 * command + 0.6 * scale * rng.standard_normal(size)
+        a, b = plant.step(command), reference.step(command)
+        for x, y in [(a.q, b.q), (a.v, b.v), (a.v_measured, b.v_measured)]:
+            assert_bitwise(x, y)
+        for field in ("qpos", "qvel", "act", "ctrl", "qacc", "time"):  # MuJoCo state, inputs
+            assert_bitwise(getattr(plant.data, field), getattr(reference.data, field))
+        assert a.signals.keys() == b.signals.keys()
+        for name in a.signals:
+            assert_bitwise(a.signals[name], b.signals[name])
+        clipped = max(clipped, float(np.max(a.signals["saturation"][:robot.n_arm])))
+    assert clipped > 0.0 or kind != "acceleration"
+
+
+SUBSTEP_CASES = {  # robot -> (plant options, control period [s], command kinds)
+    "mecanum_gen3": ({}, 0.02, ("acceleration", "velocity", "torque", "joints")),
+    "omni4_arm6": ({"passive_wheels": (0, 2), "wheel_targets": "present"}, DT,
+                   ("acceleration", "torque", "joints")),
+    "mpo700_lwr4": ({}, DT, ("velocity", "joints", "torque")),
+    "tiago_panda": ({}, 0.02, ("acceleration", "velocity")),
+    "panda": ({}, DT, ("acceleration", "velocity")),
+}
+
+
+@pytest.mark.parametrize("name", list(SUBSTEP_CASES))
+def test_the_compiled_substeps_are_bitwise_the_python_loops(name, monkeypatch):
+    # the compiled sub-step loop (wbc.sim.mujoco_substeps) against the Python loop it replaces:
+    # the same states, measurements and signals to the bit, period after period, for every
+    # command kind and base (the steerable base's velocity commands stay in Python: the wheel
+    # targets follow its steering angles)
+    robot = wbc.robots.load_panda() if name == "panda" else wbc.robots.load(name)
+    options, dt, kinds = SUBSTEP_CASES[name]
+    plant, reference = MujocoPlant(robot, **options), reference_plant(robot, **options)
+    for kind in kinds:
+        assert_same_periods(plant, reference, robot, kind, dt, 30, monkeypatch)
+        steered = plant.kind == "steerable" and kind == "velocity"
+        assert plant.compiled_substeps == (cbuild.compiler_available() and not steered)
+
+
+@pytest.fixture
+def no_compiler(monkeypatch, tmp_path):
+    """No C compiler and an empty library cache (the compiled loop cannot be built)."""
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    monkeypatch.setenv("WBC_JIT_CACHE", str(tmp_path))
+    mujoco_substeps.library.cache_clear()
+    yield
+    mujoco_substeps.library.cache_clear()
+
+
+def test_without_a_compiler_the_python_loop_runs_the_same_substeps(no_compiler, monkeypatch):
+    assert mujoco_substeps.library() is None
+    for name, kind in (("mecanum_gen3", "acceleration"), ("omni4_arm6", "torque")):
+        robot = wbc.robots.load(name)
+        plant = MujocoPlant(robot)
+        assert_same_periods(plant, reference_plant(robot), robot, kind, 0.02, 30, monkeypatch)
+        assert not plant.compiled_substeps
+
+
+@pytest.mark.skipif(not cbuild.compiler_available(), reason="needs a C compiler")
+def test_the_compiled_loop_refuses_mujoco_headers_of_another_version(monkeypatch, tmp_path):
+    import mujoco
+
+    monkeypatch.setenv("WBC_JIT_CACHE", str(tmp_path))
+    monkeypatch.setattr(mujoco, "mj_version", lambda: 1)  # a library older than the headers
+    mujoco_substeps.library.cache_clear()
+    try:
+        assert mujoco_substeps.library() is None
+        robot = wbc.robots.load("omni4_arm6")
+        plant = MujocoPlant(robot)
+        plant.reset(robot.neutral(), np.zeros(robot.nv), DT, "velocity")
+        assert not plant.compiled_substeps
+        plant.step(np.zeros(robot.nv))
+    finally:
+        mujoco_substeps.library.cache_clear()
+
+
+@pytest.mark.skipif(not cbuild.compiler_available(), reason="needs a C compiler")
+def test_a_mujoco_error_inside_the_compiled_loop_raises_as_the_bindings_do():
+    # mju_error inside the loop exits the process by default: the loop catches it and the plant
+    # raises MuJoCo's FatalError with the bindings' message
+    import mujoco
+
+    robot = wbc.robots.load("omni4_arm6")
+    plant = MujocoPlant(robot)
+    plant.reset(robot.neutral(), np.zeros(robot.nv), DT, "velocity")
+    assert plant.compiled_substeps
+    integrator = plant.model.opt.integrator
+    plant.model.opt.integrator = 99  # no such integrator: mj_step raises
+    with pytest.raises(mujoco.FatalError) as direct:
+        mujoco.mj_step(plant.model, plant.data)
+    with pytest.raises(mujoco.FatalError, match=re.escape(str(direct.value))):
+        plant.step(np.zeros(robot.nv))
+    plant.model.opt.integrator = integrator
+    plant.reset(robot.neutral(), np.zeros(robot.nv), DT, "velocity")
+    assert np.isfinite(plant.step(np.zeros(robot.nv)).q).all()  # the loop runs on

@@ -1,9 +1,11 @@
-"""CasADi functions built as C shared libraries, cached on disk.
+"""CasADi functions (and Python extension modules) built as C shared libraries, cached on disk.
 
 CasADi generates the C code of a function (each block function of a compiled stack, for
 :func:`wbc.passes.jit_compiled`; the fused tick, for :class:`wbc.fused.FusedWorkspace`); the
 system compiler (``$CC``, default ``cc``) builds it into a shared library that
-:func:`casadi.external` loads. Libraries are kept in a cache folder under a hash of the C
+:func:`casadi.external` loads (:func:`compiled_c`). :func:`compiled_extension` builds a Python
+extension module from C source the same way (the control tick's input checks,
+:data:`wbc.checks.STAGE_SOURCE`). Libraries are kept in a cache folder under a hash of the C
 source, the compiler and its flags, so a function is compiled once per machine, however many
 controllers, backends or processes use it: the first build costs ≈ 0.1–0.5 s per function,
 every later one ≈ 1 ms. Evaluation drops from the CasADi virtual machine's ≈ 10 µs to ≈ 1 µs
@@ -18,13 +20,18 @@ from __future__ import annotations
 
 import atexit
 import hashlib
+import importlib.machinery
+import importlib.util
 import os
 import shutil
 import subprocess
+import sys
+import sysconfig
 import tempfile
 from collections.abc import Callable
 from functools import cache
 from pathlib import Path
+from types import ModuleType
 
 import casadi as ca
 
@@ -62,15 +69,42 @@ def compiled_c(function: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS,
     source = generator.dump()
     if patch is not None:
         source = patch(source)
+    return ca.external(function.name(), str(cached_library(function.name(), source, flags, link)))
+
+
+def compiled_extension(name: str, source: str, flags: tuple[str, ...] = DEFAULT_FLAGS
+                       ) -> ModuleType:
+    """The Python extension module ``name`` (its C ``source`` defines ``PyInit_<name>``),
+    built against this interpreter's headers into the cache if needed, and loaded. ``flags``
+    (e.g. ``-I`` folders) are part of the cache key, and so are the interpreter's version and
+    ABI. Raises ``RuntimeError`` if the compiler fails (no compiler, no Python headers)."""
+    include = sysconfig.get_paths()["include"]
+    stamp = f"/* CPython {sys.version.split()[0]} {sysconfig.get_config_var('EXT_SUFFIX')} */\n"
+    path = cached_library(name, stamp + source, (*flags, f"-I{include}"))
+    loader = importlib.machinery.ExtensionFileLoader(name, str(path))
+    spec = importlib.util.spec_from_file_location(name, path, loader=loader)
+    if spec is None:
+        raise RuntimeError(f"cannot load {path} as a Python extension")
+    module = importlib.util.module_from_spec(spec)
+    loader.exec_module(module)
+    return module
+
+
+def cached_library(stem: str, source: str, flags: tuple[str, ...] = DEFAULT_FLAGS,
+                   link: tuple[str, ...] = ()) -> Path:
+    """The path of the shared library built from C ``source`` with ``flags`` and ``link``
+    (arguments placed after the source) by ``$CC``, in the cache under ``stem`` and a hash of
+    all of them — built first if it is not there (see the module docstring). Raises
+    ``RuntimeError`` if the compiler fails or no folder is writable."""
     compiler = os.environ.get("CC", "cc")
     key = hashlib.sha256("\0".join([source, compiler, *flags, *link]).encode()).hexdigest()[:24]
-    name = f"{function.name()}_{key}.so"
+    name = f"{stem}_{key}.so"
     for folder in (cache_dir, _process_dir):  # the process folder only if the cache fails
         library = folder() / name
         try:
             if not library.exists():
                 _build(source, library, compiler, (*flags, "-shared", "-fPIC"), link)
-            return ca.external(function.name(), str(library))
+            return library
         except OSError:  # not writable: next folder
             continue
     raise RuntimeError(f"no writable folder for JIT libraries (tried {cache_dir()})")
@@ -97,4 +131,5 @@ def compiler_available() -> bool:
     return shutil.which(os.environ.get("CC", "cc")) is not None
 
 
-__all__ = ["DEFAULT_FLAGS", "cache_dir", "compiled_c", "compiler_available"]
+__all__ = ["DEFAULT_FLAGS", "cache_dir", "cached_library", "compiled_c", "compiled_extension",
+           "compiler_available"]

@@ -20,7 +20,10 @@ is a plant):
   true state it starts from;
 * ``step(command) -> PlantStep``: advance one control period of ``dt`` (``dt / TIMESTEP``
   physics sub-steps with the command held) and return the true ``q``, ``v`` at its end, what the
-  encoders measured over it (``v_measured``) and the tick's signals.
+  encoders measured over it (``v_measured``) and the tick's signals. The sub-steps run in
+  compiled C where a C compiler and MuJoCo's headers are at hand
+  (:mod:`wbc.sim.mujoco_substeps`; the same MuJoCo calls, bitwise the same states), else in
+  Python.
 
 Coordinates are wbc's: ``q = [x, y, θ, q_arm]`` (θ unwrapped, the base frame's pose on the
 floor) and ``v`` = the base's own velocity coordinates in the base frame (``(v_x, v_y, ω)``, or
@@ -75,6 +78,7 @@ its torque limit.
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -83,7 +87,7 @@ import numpy as np
 
 from ..checks import all_finite, checked_flag, checked_number, checked_vector
 from ..errors import InvalidValueError, NonFiniteError, ShapeError, WbcError
-from . import mjcf
+from . import mjcf, mujoco_substeps
 
 __all__ = ["MujocoPlant", "PlantStep"]
 
@@ -143,6 +147,10 @@ class MujocoPlant:
     Attributes:
         model, data: MuJoCo's ``MjModel`` / ``MjData`` after :meth:`reset`.
         mjcf: the :class:`~wbc.sim.mjcf.MjcfModel` they were built from.
+        compiled_substeps: whether :meth:`step` runs its physics sub-steps in compiled C
+            (:mod:`wbc.sim.mujoco_substeps`: bitwise the same states, ≈ 1–5 µs less per
+            1 ms sub-step) rather than in Python (no C compiler or MuJoCo headers, or a
+            steered base's velocity or acceleration commands); set by :meth:`reset`.
     """
 
     def __init__(self, robot, *, mu: float = mjcf.DEFAULT_MU, masses=None,
@@ -187,6 +195,7 @@ class MujocoPlant:
         self.data: Any = None  # mujoco.MjData once reset
         self.mjcf: Any = None  # mjcf.MjcfModel once reset
         self.command: str | None = None
+        self.compiled_substeps = False
 
     # ------------------------------------------------------------------ set-up
     def _build(self, command: str) -> None:
@@ -256,24 +265,24 @@ class MujocoPlant:
         self._hips = (np.asarray(self.base.hips, dtype=float) if self.kind == "steerable"
                       else np.zeros((0, 2)))
         # MuJoCo's counts of the warnings it gives when it resets an unstable simulation
-        self._unstable = [int(getattr(mj.mjtWarning, name)) for name in
-                          ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC",
-                           "mjWARN_BADCTRL")]
+        self._unstable = np.array([int(getattr(mj.mjtWarning, name)) for name in
+                                   ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC",
+                                    "mjWARN_BADCTRL")])
 
     # ------------------------------------------------------------------ state maps
     def _yaw(self) -> float:
-        w, x, y, z = self.data.qpos[3:7]
+        w, x, y, z = self.data.qpos[3:7].tolist()
         return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
     def _twist(self) -> np.ndarray:
         """True body twist ``(v_x, v_y, ω)`` of the base frame, base (yaw) axes."""
         d = self.data
         c, s = math.cos(self._theta_wrapped), math.sin(self._theta_wrapped)
-        vx, vy = d.qvel[0], d.qvel[1]
-        w, x, y, z = d.qpos[3:7]
+        vx, vy, _, rx, ry, rz = d.qvel[0:6].tolist()  # linear (world), angular (body) velocity
+        w, x, y, z = d.qpos[3:7].tolist()
         # world z component of the body-frame angular velocity: third row of R(quat)
         row = (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
-        omega = row[0] * d.qvel[3] + row[1] * d.qvel[4] + row[2] * d.qvel[5]
+        omega = row[0] * rx + row[1] * ry + row[2] * rz
         return np.array([c * vx + s * vy, -s * vx + c * vy, omega])
 
     def _read(self) -> tuple[np.ndarray, np.ndarray]:
@@ -325,6 +334,7 @@ class MujocoPlant:
         self._substeps, self._dt = substeps, dt
         self._rows = (np.empty((substeps, m.nq)), np.empty((substeps, m.nv)),
                       np.empty((substeps, m.nv)))
+        self._prepare_substeps()
         self._place(q0)
         self._theta = self._theta_wrapped = float(q0[2]) if self.base is not None else 0.0
         self._hold_q = q0[self.nq - len(self._arm_q):].copy()
@@ -395,6 +405,87 @@ class MujocoPlant:
         d.ctrl[self._arm_u] = bias + inertia * (omega**2 * error
                                                 - 2.0 * omega * d.qvel[self._arm_v])
 
+    def _prepare_substeps(self) -> None:
+        """The sub-step loop's buffers for this reset's command, and the compiled loop's
+        arguments when it runs the periods (:mod:`wbc.sim.mujoco_substeps`)."""
+        m, kind, n = self.model, self.command, self._substeps
+        accelerate = kind == "acceleration"
+        # a steered base's wheel targets follow its steering angles: set per sub-step in Python
+        self._steered = self.kind == "steerable" and kind in ("velocity", "acceleration")
+        unsteered = self.base is not None and kind in ("velocity", "acceleration") \
+            and not self._steered
+        self._drives = np.empty((n, len(self._wheel_u))) if unsteered else None
+        # the powered wheels' rates = base velocity coordinates · this
+        self._wheel_jacobian = (self._jacobian.T[:, self._powered] if unsteered
+                                else np.zeros((0, 0)))
+        # the velocity targets' ramp over the period: the integrated commanded acceleration
+        self._ramp = np.arange(1, n + 1) * mjcf.TIMESTEP if accelerate else np.zeros(n)
+        self._qacc = np.zeros(m.nv)
+        self._tau = np.zeros(m.nv)
+        self._damping = np.zeros(len(self._arm_v))
+        self._limit = np.ascontiguousarray(self.mjcf.arm_torque, dtype=float)
+        compiled = None if self._steered else mujoco_substeps.library()
+        self.compiled_substeps = compiled is not None
+        if compiled is None:
+            return
+        self._compiled = compiled
+        # the arrays the library reads and writes through raw pointers: kept alive here
+        self._compiled_index = tuple(np.ascontiguousarray(i, dtype=np.intc) for i
+                                     in (self._wheel_u, self._arm_v, self._arm_u))
+        self._compiled_error = ctypes.create_string_buffer(1024)
+        wheel_u, arm_v, arm_u = self._compiled_index
+        drives, qacc = self._drives, self._qacc
+
+        def address(array):
+            return None if array is None else array.ctypes.data
+
+        self._compiled_arguments = (
+            m._address, self.data._address, n,
+            0 if drives is None else len(wheel_u), address(wheel_u), address(drives),
+            address(qacc) if accelerate else None, address(self._tau),
+            len(arm_v) if accelerate else 0, address(arm_v), address(arm_u),
+            address(self._damping), address(self._limit),
+            *(address(rows) for rows in self._rows),
+            ctypes.addressof(self._compiled_error), len(self._compiled_error))
+
+    def _python_substeps(self, start: np.ndarray, slope: np.ndarray) -> None:
+        """The period's sub-steps in Python: the compiled loop's twin (the same MuJoCo calls in
+        the same order; see :mod:`wbc.sim.mujoco_substeps`), and the only loop for a steered
+        base's velocity or acceleration commands (``start``, ``slope``: the base's velocity
+        target at the period's start and its rate, for the wheels' inverse kinematics)."""
+        mj, m, d = self._mujoco, self.model, self.data
+        h = mjcf.TIMESTEP
+        accelerate = self.command == "acceleration"
+        drives, qacc, tau = self._drives, self._qacc, self._tau
+        damping, limit = self._damping, self._limit
+        qpos_rows, qvel_rows, force_rows = self._rows
+        # MuJoCo's arrays bound once (each attribute read makes a new view) and the index
+        # arrays as slices where contiguous: the loop below runs 1000 times a simulated second
+        qpos, qvel, ctrl, d_qacc, qfrc = d.qpos, d.qvel, d.ctrl, d.qacc, d.qfrc_actuator
+        arm_v, arm_u, wheel_u = self._arm_v_fast, self._arm_u_fast, self._wheel_u_fast
+        for k in range(self._substeps):
+            if drives is not None:
+                ctrl[wheel_u] = drives[k]
+            elif self._steered:
+                target = start + slope * (k + 1) * h if accelerate else start
+                drive, steer = self._wheel_rates(target)
+                ctrl[wheel_u] = drive[self._powered]
+                ctrl[self._steer_u] = steer
+            if accelerate:
+                mj.mj_step1(m, d)
+                d_qacc[:] = qacc
+                mj.mj_rne(m, d, 1, tau)
+                torque = tau[arm_v] + damping * qvel[arm_v]
+                ctrl[arm_u] = np.minimum(np.maximum(torque, -limit, out=torque), limit,
+                                         out=torque)
+                mj.mj_step2(m, d)
+            else:
+                mj.mj_step(m, d)
+            # recorded per sub-step, evaluated after the period (vectorised)
+            qpos_rows[k] = qpos
+            qvel_rows[k] = qvel
+            force_rows[k] = qfrc
+
     def step(self, command) -> PlantStep:
         """Advance one control period under ``command`` (see the module docstring)."""
         if self._substeps == 0:
@@ -412,7 +503,7 @@ class MujocoPlant:
             raise ShapeError(f"MujocoPlant: a {kind} command must have "
                              f"{' or '.join(map(str, sizes))} entries, got {command.shape[0]}")
         h = mjcf.TIMESTEP
-        warned = sum(d.warning[i].number for i in self._unstable)
+        warned = d.warning.number[self._unstable].sum()
         arm_q0 = d.qpos[self._arm_q].copy()
         wheel_q0 = d.qpos[self._wheel_q].copy()
         steer_q0 = d.qpos[self._steer_q].copy()
@@ -420,21 +511,22 @@ class MujocoPlant:
             # the arm servos' gravity and Coriolis feedforward (joint torques), held over the
             # period
             d.qfrc_applied[self._arm_v] = d.qfrc_bias[self._arm_v]
+        # the base's velocity target at the period's start and its rate over the period (none
+        # for torque and joints commands)
+        start = slope = np.zeros(nb)
         if kind == "velocity":
             d.ctrl[self._arm_u] = command[nb:]
-            base_target = command[:nb]
+            start, slope = command[:nb], np.zeros(nb)
         elif kind == "acceleration":
-            base_start = self._v_base_target
-            arm_acc = command[nb:]
+            start, slope = self._v_base_target, command[:nb]
             # the arm's and the base's commanded accelerations (wheels, rollers and springs
             # taken unaccelerated), for the arm's inverse dynamics
-            qacc = np.zeros(m.nv)
-            qacc[self._arm_v] = arm_acc
+            qacc = self._qacc
+            qacc[:] = 0.0
+            qacc[self._arm_v] = command[nb:]
             if self.base is not None:
                 qacc[:6] = self._base_acceleration(command[:nb])
-            tau = np.zeros(m.nv)
-            limit = self.mjcf.arm_torque
-            damping = m.dof_damping[self._arm_v]
+            np.take(m.dof_damping, self._arm_v, out=self._damping)
         elif kind == "joints":
             n_drive_steer = n_wheels + len(self._steer_v)
             d.ctrl[self._wheel_u] = command[:n_wheels][self._powered]
@@ -447,51 +539,26 @@ class MujocoPlant:
         else:
             d.ctrl[self._wheel_u] = command[:n_wheels][self._powered]
             d.ctrl[self._arm_u] = command[n_wheels:] if command.size > n_wheels else 0.0
-        # the wheel (and steer) servos' targets: per sub-step for a steered base (its inverse
-        # kinematics depends on the steering angles), else all at once
-        steered = self.kind == "steerable" and kind in ("velocity", "acceleration")
-        drives = None
-        if self.base is not None and kind in ("velocity", "acceleration") and not steered:
-            ramp = (np.arange(1, self._substeps + 1) * h if kind == "acceleration"
-                    else np.zeros(self._substeps))
-            targets = (base_start if kind == "acceleration" else base_target) + np.outer(
-                ramp, command[:nb] if kind == "acceleration" else np.zeros(nb))
-            drives = targets @ self._jacobian.T[:, self._powered]
+        if self._drives is not None:  # the unsteered wheels' servo targets, all at once
+            np.matmul(start + self._ramp[:, None] * slope, self._wheel_jacobian,
+                      out=self._drives)
+        if self.compiled_substeps:
+            if self._compiled(*self._compiled_arguments):
+                raise mj.FatalError(self._compiled_error.value.decode())
+        else:
+            self._python_substeps(start, slope)
         qpos_rows, qvel_rows, force_rows = self._rows
-        # MuJoCo's arrays bound once (each attribute read makes a new view) and the index
-        # arrays as slices where contiguous: the loop below runs 1000 times a simulated second
-        qpos, qvel, ctrl, d_qacc, qfrc = d.qpos, d.qvel, d.ctrl, d.qacc, d.qfrc_actuator
-        arm_v, arm_u, wheel_u = self._arm_v_fast, self._arm_u_fast, self._wheel_u_fast
-        for k in range(self._substeps):
-            if drives is not None:
-                ctrl[wheel_u] = drives[k]
-            elif steered:
-                if kind == "acceleration":
-                    base_target = base_start + command[:nb] * (k + 1) * h
-                drive, steer = self._wheel_rates(base_target)
-                ctrl[wheel_u] = drive[self._powered]
-                ctrl[self._steer_u] = steer
-            if kind == "acceleration":
-                mj.mj_step1(m, d)
-                d_qacc[:] = qacc
-                mj.mj_rne(m, d, 1, tau)
-                torque = tau[arm_v] + damping * qvel[arm_v]
-                ctrl[arm_u] = np.minimum(np.maximum(torque, -limit, out=torque), limit,
-                                         out=torque)
-                mj.mj_step2(m, d)
-            else:
-                mj.mj_step(m, d)
-            # recorded per sub-step, evaluated after the period (vectorised)
-            qpos_rows[k] = qpos
-            qvel_rows[k] = qvel
-            force_rows[k] = qfrc
-        saturated = (np.abs(force_rows[:, self._sat_v]) >= self._sat_limit).mean(axis=0)
-        if not all_finite(d.qpos) or sum(d.warning[i].number for i in self._unstable) > warned:
+        n = self._substeps
+        # the means below as sums / n: numpy's mean without its Python overhead, the same
+        # numbers (the same arrays summed in the same order)
+        saturated = (np.abs(force_rows.take(self._sat_v, axis=1)) >= self._sat_limit).sum(
+            axis=0) / n
+        if not all_finite(d.qpos) or d.warning.number[self._unstable].sum() > warned:
             raise NonFiniteError(f"MujocoPlant: the simulation diverged at t = {d.time:.4g} s "
                                  "(MuJoCo found NaN, inf or huge values in its state and reset "
                                  "it)")
         if kind == "acceleration":
-            self._v_base_target = base_start + command[:nb] * self._dt
+            self._v_base_target = start + command[:nb] * self._dt
         q, v = self._read()
         dt = self._dt
         v_meas = np.empty(self.nv)
@@ -508,15 +575,16 @@ class MujocoPlant:
             if kind == "velocity":
                 self._v_base_target = command[:nb].copy()
             slips, lateral = self._slips(qpos_rows, qvel_rows)
-            signals["wheel_torque"] = force_rows[:, self._wheel_v].mean(axis=0)
-            signals["wheel_slip"] = slips.mean(axis=0)
-            signals["slip_distance"] = slips.sum(axis=0) * h
+            signals["wheel_torque"] = np.add.reduce(force_rows[:, self._wheel_v], axis=0) / n
+            slip_sum = np.add.reduce(slips, axis=0)
+            signals["wheel_slip"] = slip_sum / n
+            signals["slip_distance"] = slip_sum * h
             if self.kind == "differential":
-                signals["lateral_slip"] = float(lateral.mean())
+                signals["lateral_slip"] = float(np.add.reduce(lateral) / n)
             normal, utilisation = self._contacts(n_wheels)
             signals["normal_forces"] = normal
             signals["friction_utilisation"] = utilisation
-            w, x, y, z = d.qpos[3:7]  # the base's tilt: its z axis against the vertical
+            w, x, y, z = d.qpos[3:7].tolist()  # the base's tilt: its z axis from the vertical
             signals["base_tilt"] = math.acos(min(1.0, max(-1.0, 1.0 - 2.0 * (x * x + y * y))))
         if not self.odometry:
             return PlantStep(q, v, v.copy(), signals, q_measured=q.copy())
@@ -591,15 +659,15 @@ class MujocoPlant:
         normal = np.zeros(n_wheels)
         utilisation = np.zeros(n_wheels)
         force = self._force
-        for i in range(d.ncon):
-            contact = d.contact[i]
-            wheel = max(self._geom_wheel[contact.geom1], self._geom_wheel[contact.geom2])
+        wheels = self._geom_wheel[d.contact.geom].max(axis=1)  # each contact's (−1: none)
+        for i, wheel in enumerate(wheels.tolist()):
             if wheel < 0:
                 continue
             mj.mj_contactForce(m, d, i, force)
-            normal[wheel] += force[0]
-            if force[0] > 0:
-                share = math.hypot(force[1], force[2]) / (self.mu * force[0])
+            normal_force, f1, f2 = force[:3].tolist()
+            normal[wheel] += normal_force
+            if normal_force > 0:
+                share = math.hypot(f1, f2) / (self.mu * normal_force)
                 utilisation[wheel] = max(utilisation[wheel], share)
         return normal, utilisation
 
