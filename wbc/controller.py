@@ -46,10 +46,17 @@ if a quantity needs it, and skips the update when no quantity is left to fill); 
 
 The tick
 --------
-Write ``q``, ``v``, ``dt`` → ``robot.update`` → the quantity fillers (a loop over the few model
-quantities, never over tasks) → references → ``workspace.solve()`` (one compiled evaluation
-and one warm-started backend solve per priority level) → the fallback policy if the solve
-failed. ``solution.timings.model`` holds the first four steps.
+Check and write the references, ``q`` and ``v`` → ``robot.update`` → the quantity fillers (a
+loop over the few model quantities, never over tasks) → ``workspace.solve()`` (one compiled
+evaluation and one warm-started backend solve per priority level) → the fallback policy if the
+solve failed. ``solution.timings.model`` holds the first three steps.
+
+When the controller compiles C (fused, or ``jit``), the first step is one call of a small C
+extension (:data:`wbc.checks.STAGE_SOURCE`, built once per machine and cached like the JIT
+functions): float64 arrays it accepts are checked and written in ≈ 0.1 µs; anything else — a
+list, a keyword seen for the first time, a bound pair, and every value it would refuse — takes
+the same checks in Python (≈ 1.5 µs for a Panda ``q`` and a pose), with their messages. A
+refused call writes nothing either way.
 
 On the fused path (the default for a stack on daqp without task-scaling levels, with a C
 compiler, see :mod:`wbc.fused`), the solve is one call of a generated C function holding the
@@ -67,16 +74,18 @@ A failed tick costs about what a solved one does: the search for the conflicting
 
 from __future__ import annotations
 
+import os
 import time
 import warnings
 from collections.abc import Callable
+from functools import cache
 from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
 
-from .cbuild import compiler_available
-from .checks import all_finite, as_float_array, check_pose, checked_array
+from .cbuild import DEFAULT_FLAGS, compiled_extension, compiler_available
+from .checks import STAGE_SOURCE, all_finite, as_float_array, check_pose, checked_array
 from .checks import check_frame as check_frame  # re-exported: wbc.controller.check_frame
 from .errors import (
     InfeasibleError,
@@ -109,12 +118,35 @@ DECELERATION = 0.5  # "decelerate": the previous command's share kept per failed
 class _HotPath(NamedTuple):
     """What :meth:`Controller.step` reads on every tick, in one attribute (see there)."""
 
-    q_shape: tuple[int]
-    q_view: np.ndarray | None  # "q" in p
+    stage: Callable[..., bool]  # checks and writes q, v, references: C's or _python_path
+    p: np.ndarray  # the workspace's parameter vector
+    layout: tuple[int, int, int, int]  # (q_at, nq, v_at, nv): "q", "v" in p (-1: absent)
+    specs: dict[str, tuple]  # reference keyword -> (at, rows, cols, allow_inf, pose)
     needs_v: bool
     fillers: tuple  # (fill, view) per numeric model quantity
     solve: Callable[[float], Solution]  # FusedWorkspace.solver(), or _solve_ordinary
     fused_solution: Solution | None  # what solve returns when the fused call answered
+
+
+def _python_path(p, q, v, layout, references, specs) -> bool:
+    """The stage when the C one cannot be built (or ``jit=False``): every call takes Python's
+    path (:meth:`Controller.step`)."""
+    return False
+
+
+@cache
+def _c_stage(compiler: str) -> Callable[..., bool]:
+    """The ``stage`` function of :data:`wbc.checks.STAGE_SOURCE` built by ``compiler`` (once per
+    machine, ≈ 0.3 s, then cached, see :mod:`wbc.cbuild`; loaded once per process), or
+    :func:`_python_path` if it cannot be built or loaded here (no compiler, no Python
+    headers)."""
+    source = f"/* numpy {np.__version__} */\n{STAGE_SOURCE}"
+    try:
+        module = compiled_extension("wbc_stage", source,
+                                    (*DEFAULT_FLAGS, f"-I{np.get_include()}"))
+    except (RuntimeError, ImportError):
+        return _python_path
+    return module.stage
 
 
 class Controller:
@@ -152,6 +184,7 @@ class Controller:
             ``"auto"`` (default): when a C compiler is on the path (``$CC``, default ``cc``),
             else the CasADi virtual machine. ``True`` without a compiler: a warning and the
             virtual machine. Not used on the fused path (which compiles the whole tick).
+            ``False`` with ``fused=False``: no C at all, the input checks in Python too.
         fused: the whole tick as one generated C function (compiled kinematics, assembly and
             the daqp solve, see :mod:`wbc.fused`). ``"auto"`` (default): when the backend is
             ``"daqp"``, the cascade has no task-scaling level and a C compiler is present — one
@@ -247,8 +280,8 @@ class Controller:
         self.model_parameters: list[str] = []
         self._plan()
         self.dt = dt
-        # keyword -> (parameter name, view, allow_inf), cached
         self._references: dict[str, tuple] = {}  # keyword -> see _reference
+        self._specs: dict[str, tuple] = {}  # keyword -> its layout for the stage, see _reference
         # the solve step calls: on the fused path the callable FusedWorkspace.solver() hands
         # out, bound once, and the reused solution it answers with
         workspace = self.workspace
@@ -258,8 +291,14 @@ class Controller:
             solve, self._live_solution = workspace.solver(), workspace.fused_solution
         else:
             solve, self._live_solution = self._solve_ordinary, None
-        self._hot = _HotPath(self._q_shape, self._q, self._needs_v, tuple(self._fillers),
-                             solve, self._live_solution)
+        # the C stage when this controller compiles C anyway (fused, or jit), else Python's
+        uses_c = self.fused or jit is True or (jit == "auto" and compiler_available())
+        stage = _c_stage(os.environ.get("CC", "cc")) if uses_c else _python_path
+        parameters = self.compiled.parameters
+        layout = (parameters["q"][0] if self._q is not None else -1, self.nq,
+                  parameters["v"][0] if self._v is not None else -1, self.nv)
+        self._hot = _HotPath(stage, self.workspace.p, layout, self._specs, self._needs_v,
+                             tuple(self._fillers), solve, self._live_solution)
         stack._controlled = True  # edits after this would not reach the compiled snapshot
 
     def _fused_workspace(self, fused, backend, profile, warm_start, options):
@@ -371,7 +410,9 @@ class Controller:
         """``(name, view, shape, allow_inf, what, paired, pose)`` of reference keyword ``key``
         (cached): its parameter, the view to write, how to check it, its name in errors,
         whether it is a side of a ``"<t>.lower"``/``"<t>.upper"`` pair, and whether it is a
-        pose (a ``(4, 4)`` ``"<t>.target"``, e.g. a :class:`~wbc.tasks.FrameTask`'s)."""
+        pose (a ``(4, 4)`` ``"<t>.target"``, e.g. a :class:`~wbc.tasks.FrameTask`'s). A
+        keyword that is not a side of a pair gets its spec for the C stage too (the pairs'
+        order check stays in Python)."""
         ref = self._references.get(key)
         if ref is None:
             params = self.compiled.parameters
@@ -381,12 +422,14 @@ class Controller:
                     f"unknown reference {key!r}; references are {self.reference_names}"
                     + (" (model quantities are filled by the controller; set the period "
                        "with controller.dt)" if key in self.model_parameters else ""))
-            _, shape, allow_inf = params[name]
+            at, shape, allow_inf = params[name]
             paired = name.rpartition(".")[2] in ("lower", "upper")
             pose = shape == (4, 4) and name.endswith(".target")
             ref = self._references[key] = (name, self.workspace.view(name), shape, allow_inf,
                                            f"reference {key!r} (parameter {name!r})", paired,
                                            pose)
+            if not paired:
+                self._specs[key] = (at, *shape, bool(allow_inf), pose)
         return ref
 
     def set_references(self, **references) -> None:
@@ -443,33 +486,22 @@ class Controller:
             array that no later tick writes (``out`` itself when given), on every path and
             backend.
         """
-        # The checks' messages are built only on failure (_refuse). The hot path reads module
+        # q, v and the references are checked and written by one call in C (the stage,
+        # wbc.checks.STAGE_SOURCE), which leaves every call it does not accept — a refusal, a
+        # list, a keyword seen for the first time — to the same checks in Python
+        # (_check_and_write), before anything is written either way. The hot path reads module
         # globals and one tuple of what _plan and __init__ prepared (an attribute read each
         # would cost ≈ 1 % of a Panda tick, more once the instance __dict__ is materialised).
         t0 = _clock()
-        q_shape, q_view, needs_v, fillers, solve, fused_solution = self._hot
-        if type(q) is not _ndarray or q.dtype is not _FLOAT:  # else asarray would return q
-            q = as_float_array(q, "q")
-        if q.shape != q_shape or not all_finite(q):
-            self._refuse("q", q, self.nq)
-        if v is not None:
-            if type(v) is not _ndarray or v.dtype is not _FLOAT:
-                v = as_float_array(v, "v")
-            if v.shape != self._v_shape or not all_finite(v):
-                self._refuse("v", v, self.nv)
-        if out is not None and (type(out) is not _ndarray or out.shape != self._x_shape
-                                or out.dtype is not _FLOAT):
-            self._refuse_out(out, self.compiled.n)
-        if references:  # before any write: a refused reference leaves the state as it was
-            self._write_references(references)
-        if q_view is not None:
-            q_view[...] = q  # (≈ 0.1 µs less than q_view[:] = q)
-        if needs_v:
-            if v is None:
-                v = self._zero_v
-            v_view = self._v
-            if v_view is not None:
-                v_view[...] = v
+        stage, p, layout, specs, needs_v, fillers, solve, fused_solution = self._hot
+        if ((out is not None and (type(out) is not _ndarray or out.shape != self._x_shape
+                                  or out.dtype is not _FLOAT))
+                or not stage(p, q, v, layout, references, specs)):
+            q, v = self._check_and_write(q, v, out, references)
+        if needs_v and v is None:
+            v = self._zero_v
+            if self._v is not None:
+                self._v[...] = v
         if fillers:
             self.robot.update(q, v if self._needs_drift else None)
             for fill, view in fillers:
@@ -484,6 +516,30 @@ class Controller:
             self.last_command = out
             return out
         return self._conclude(solution, out)
+
+    def _check_and_write(self, q, v, out, references: dict) -> tuple:
+        """Python's path of :meth:`step`'s inputs: check ``q``, ``v``, ``out`` and the
+        references (messages built only on failure, :meth:`_refuse`), then write the
+        references, ``q`` and ``v`` (all-or-nothing); ``(q, v)`` as float arrays."""
+        if type(q) is not _ndarray or q.dtype is not _FLOAT:  # else asarray would return q
+            q = as_float_array(q, "q")
+        if q.shape != self._q_shape or not all_finite(q):
+            self._refuse("q", q, self.nq)
+        if v is not None:
+            if type(v) is not _ndarray or v.dtype is not _FLOAT:
+                v = as_float_array(v, "v")
+            if v.shape != self._v_shape or not all_finite(v):
+                self._refuse("v", v, self.nv)
+        if out is not None and (type(out) is not _ndarray or out.shape != self._x_shape
+                                or out.dtype is not _FLOAT):
+            self._refuse_out(out, self.compiled.n)
+        if references:  # before any write: a refused reference leaves the state as it was
+            self._write_references(references)
+        if self._q is not None:
+            self._q[...] = q  # (≈ 0.1 µs less than self._q[:] = q)
+        if v is not None and self._v is not None:
+            self._v[...] = v
+        return q, v
 
     def _solve_ordinary(self, started: float) -> Solution:
         """``workspace.solve()`` with ``timings.model`` the time from ``started`` to it (the
