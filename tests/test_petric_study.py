@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
@@ -14,10 +13,9 @@ from wbc.papers.petric import VelocityField
 
 
 @pytest.fixture(scope="module")
-def study(tmp_path_factory):
-    out = tmp_path_factory.mktemp("petric")
-    assert petric.main(["--quick", "--out", str(out)]) == 0
-    return out / "petric", json.loads((out / "petric" / "petric.json").read_text())
+def study(quick_studies):
+    # the session's quick run (conftest.py), which the other study tests read too
+    return quick_studies.study("petric"), quick_studies.data("petric")
 
 
 def test_contract(study):
@@ -25,16 +23,14 @@ def test_contract(study):
     assert_study_contract(data)
     for name in petric.SCENARIOS:
         methods = data["runs"][name]
-        assert {"decoupled", "whole_body"} <= set(methods)
+        assert {"decoupled", "decoupled_exact", "whole_body"} <= set(methods)
         for series in methods.values():
             n = len(series["t"])
             assert n > 10
             assert np.shape(series["base_velocity"]) == (n, 2)
             assert np.shape(series["ee_error"]) == (n,)
             assert np.all(np.isfinite(series["ee_error"]))
-    assert "fixed_base" in data["runs"]["forward"]
-    for name in petric.EQ26_SCENARIOS:
-        assert "decoupled_eq26" in data["runs"][name]
+    assert {"fixed_base", "fixed_base_exact"} <= set(data["runs"]["forward"])
     for timing in data["timing"].values():
         assert timing["tick_median_s"] > 0 and timing["tick_p95_s"] >= timing["tick_median_s"]
     assert data["figures"]
@@ -80,15 +76,45 @@ def test_claims_are_computed_from_the_runs(study):
     assert claims["damped_projector_leak"]["ours"]["max_mm_s"] == pytest.approx(1e3 * leak.max())
     # the leak of eq. 26's damped projector is real and within its bound √λ/2·||q̇_n||
     assert claims["damped_projector_leak"]["holds"] is False and leak.max() > 1e-4
-    eq26 = claims["damped_projector_leak"]["ours"]["rms_tcp_error"]
-    for name in petric.EQ26_SCENARIOS:
-        assert eq26[name]["eq26_mm"] == pytest.approx(
-            1e3 * _rms(runs[name]["decoupled_eq26"]["ee_error"]))
+    tracking = claims["damped_projector_leak"]["ours"]["rms_tcp_error"]
+    for name in petric.SCENARIOS:  # the paper's controller (eq. 26) and ours (exact)
+        assert tracking[name]["paper_eq26_mm"] == pytest.approx(
+            1e3 * _rms(runs[name]["decoupled"]["ee_error"]))
+        assert tracking[name]["exact_mm"] == pytest.approx(
+            1e3 * _rms(runs[name]["decoupled_exact"]["ee_error"]))
 
     wb = {s: _rms(runs[s]["whole_body"]["ee_error"]) for s in petric.SCENARIOS}
     de = {s: _rms(runs[s]["decoupled"]["ee_error"]) for s in petric.SCENARIOS}
     better = sum(wb[s] <= de[s] for s in petric.SCENARIOS)
     assert claims["whole_body_vs_decoupled"]["ours"]["scenarios_better_or_equal"] == better
+
+
+def test_fidelity_claims_are_computed_from_the_runs(study):
+    """Issue #29's claims: each behaviour claim also for ours (``*_exact``), the lateral run's
+    onsets, the settling hold, both readings of the rate limits, the invariance campaign."""
+    _, data = study
+    runs, claims = data["runs"], {c["id"]: c for c in data["claims"]}
+    for claim in petric.RECONSTRUCTED[:-1]:
+        assert f"{claim}_exact" in claims and "reconstructed trajectory" in claims[claim]["note"]
+    lateral = runs["lateral"]["decoupled"]
+    t, v = np.asarray(lateral["t"]), np.asarray(lateral["base_velocity"])
+    ours = claims["lateral_retreat_first"]["ours"]
+    if ours["t_backward_onset_s"] is not None:
+        back = np.maximum(-v[:, 0], 0.0)
+        assert ours["t_backward_onset_s"] == t[np.argmax(back >= 0.1 * back.max())]
+    square = runs["square"]["decoupled_exact"]
+    assert claims["settling_exact"]["ours"]["square_end_error_mm"] == pytest.approx(
+        1e3 * square["ee_error"][-1])
+    steps = np.concatenate([np.diff(runs[s]["decoupled"]["command_base"], axis=0)
+                            for s in petric.SCENARIOS])
+    per_second = claims["rate_limits_per_second"]["ours"]
+    assert per_second["ticks"] == len(steps)
+    assert per_second["ticks_over_domega"] == int(np.sum(np.abs(steps[:, 1]) / petric.DT > 1.0))
+    assert per_second["domega_dt_max"] == pytest.approx(np.abs(steps[:, 1]).max() / petric.DT)
+    invariance = claims["retreat_invariance"]
+    assert invariance["holds"] == (invariance["ours"]["entered"] == 0)
+    assert invariance["ours"]["placements"] == 720
+    assert invariance["ours"]["entered_above_touch"] == 0
 
 
 def test_fixed_base_run_keeps_the_base_still(study):

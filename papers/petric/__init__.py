@@ -14,7 +14,9 @@ What lives where:
   fused QPs, the TEE point and the field as generated C; ``fused=False`` turns it off);
 * :mod:`~wbc.papers.petric.closed_form` (the base's rate limits) and
   :mod:`~wbc.papers.petric.closed_form_arm` (eq. 22, eq. 26's damped projector) — the closed
-  forms (also in :mod:`wbc.solvers.reference`).
+  forms (also in :mod:`wbc.solvers.reference`);
+* :mod:`~wbc.papers.petric.invariance` — §II-A.2's retreat-region invariance in closed loop,
+  many placements of a TEE held fixed in the world integrated side by side.
 
 The study (scenarios, metrics, claims, figures): :mod:`wbc.experiments.studies.petric`.
 """
@@ -33,6 +35,11 @@ from .controllers import (
     DecoupledController,
     FieldDriver,
     WholeBodyController,
+)
+from .invariance import (
+    held_point_depths,
+    placements,
+    touch_height,
 )
 from .stacks import (
     DT,
@@ -59,10 +66,13 @@ __all__ = [
     "arm_stack",
     "damped_projector",
     "dls_arm_velocity",
+    "held_point_depths",
+    "placements",
     "posture_target",
     "projector_leak",
     "rate_limit_interval",
     "rate_limited_twist",
     "smoothstep",
+    "touch_height",
     "whole_body_stack",
 ]

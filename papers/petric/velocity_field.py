@@ -60,9 +60,12 @@ forward, so the zone can only be entered by forward motion: where the forward zo
 ``d_f < Δ_f`` reaches it (below ``z ≈ −0.055`` m with the defaults) or lies within the few cm
 the smoothing lag coasts (``≈ 3·v·dt``). Below, the forward law drives the base into the zone
 (``v = K_f(Δ_f − d_f) > 0`` on its boundary) and the smoothing lag carries it further:
-1.2–1.7 cm deep in 10 ms loops over random placements, after which it settles on the boundary
-from inside. For ``z ≥ 0`` (the zones ≥ 4.5 cm apart) no sampled run entered the zone. The tests
-give the counterexamples.
+1.2–1.7 cm deep in 10 ms loops with an ideal base over random placements, after which it
+settles on the boundary from inside; in the study's own loop (50 Hz, the base behind a 0.1 s
+lag and the PMB2's saturation) up to 11.6 cm, the deepest from the floor's height at start
+clearances of 0.3–0.45 m (:mod:`~wbc.papers.petric.invariance`, claim ``retreat_invariance``
+of ``wbc study petric``). For ``z ≥ 0`` (the zones ≥ 4.5 cm apart) no sampled run entered the
+zone. The tests give the counterexamples.
 """
 
 from __future__ import annotations
@@ -296,17 +299,22 @@ class VelocityField:
                                                     self.rate_limit), -self.limit, self.limit)
         return float(self.state[0]), float(self.state[1])
 
+    def symbolic_distances(self, p: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """:meth:`distances` as CasADi expressions of the TEE point ``p`` (3,) [m]: ``(d_f,
+        d_r, φ)`` [m, m, rad], the same operations as :meth:`_geometry`."""
+        x, y, z = p[0], p[1], p[2]
+        planar = ca.hypot(x, y)
+        to_shoulder = ca.hypot(planar, z - self.l0)
+        d_r = ca.if_else(z <= self.l0, planar, to_shoulder) - self.b_d     # eq. 6
+        return self.r_f - to_shoulder, d_r, ca.atan2(y, x)                 # eq. 4
+
     def symbolic_step(self, p: ca.SX, state: ca.SX) -> ca.SX:
         """:meth:`step` as a CasADi expression, for a tick compiled to C: the new :attr:`state`
         (4,) from the TEE point ``p`` (3,) [m] and the previous ``state`` (4,), the branches as
         ``if_else`` and the latch as the state's last two entries. The same operations as
         :meth:`_geometry`, :meth:`_latch`, :meth:`_laws` and :meth:`step` in the same order
         (``tests/test_petric_fast.py`` holds the two equal)."""
-        x, y, z = p[0], p[1], p[2]
-        planar = ca.hypot(x, y)
-        to_shoulder = ca.hypot(planar, z - self.l0)
-        d_r = ca.if_else(z <= self.l0, planar, to_shoulder) - self.b_d     # eq. 6
-        d_f, phi = self.r_f - to_shoulder, ca.atan2(y, x)                  # eq. 4
+        d_f, d_r, phi = self.symbolic_distances(p)
         inside = d_r < self.delta_r                                         # eq. 13: retreat
         entry = ca.if_else(phi >= 0.0, -self.phi_t, self.phi_t)           # eq. 11
         heading = ca.if_else(inside, ca.if_else(state[3], state[2], entry), 0.0)
