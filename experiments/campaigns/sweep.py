@@ -328,3 +328,7 @@ def main(argv=None) -> int:
     print(markdown(result))
     print(f"wrote {folder}/", file=sys.stderr)
     return 1 if result["defects"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
