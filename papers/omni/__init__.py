@@ -7,11 +7,12 @@ What lives where:
 * :mod:`~wbc.papers.omni.distribution_tasks` — the distributions as QP stacks
   (:class:`TorqueDistribution`, :func:`distribution_stack`, their tasks);
 * :mod:`~wbc.papers.omni.control` — the platform's two controllers (:class:`OmniPositionControl`,
-  :class:`OmniForceControl`);
+  :class:`OmniForceControl`) and the controller's load-transfer model (:func:`load_transfer`);
 * :mod:`~wbc.papers.omni.dynamics` — the plant: the platform's planar rigid-body dynamics with
   Coulomb wheel friction and servos (:class:`OmniDynamics`, a ``wbc.sim`` actuation);
 * :mod:`~wbc.papers.omni.closed_form` — the distributions in closed form (also in
-  :mod:`wbc.solvers.reference`).
+  :mod:`wbc.solvers.reference`), with both readings of eq. 12's lost criterion H
+  (:data:`H_CRITERIA`).
 
 The base's kinematics, masses and normal forces stay generic in :mod:`wbc.robots.omni`. The
 study (scenarios, metrics, claims, figures): :mod:`wbc.experiments.studies.omni`.
@@ -19,13 +20,17 @@ study (scenarios, metrics, claims, figures): :mod:`wbc.experiments.studies.omni`
 
 from .closed_form import (
     DISTRIBUTION_METHODS,
+    H_CRITERIA,
+    equal_ratios,
     friction_utilisation,
     torque_distribution,
     torque_null_space,
 )
 from .control import (
+    LIFTED_LOAD,
     OmniForceControl,
     OmniPositionControl,
+    load_transfer,
     platform_error,
 )
 from .distribution_tasks import (
@@ -47,6 +52,8 @@ __all__ = [
     "DISTRIBUTION_METHODS",
     "FUSED_METHODS",
     "FrictionUtilisation",
+    "H_CRITERIA",
+    "LIFTED_LOAD",
     "OmniDynamics",
     "OmniForceControl",
     "OmniPositionControl",
@@ -55,7 +62,9 @@ __all__ = [
     "WheelWrench",
     "coulomb_forces",
     "distribution_stack",
+    "equal_ratios",
     "friction_utilisation",
+    "load_transfer",
     "platform_error",
     "torque_distribution",
     "torque_null_space",

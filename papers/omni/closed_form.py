@@ -9,26 +9,56 @@ one member:
 
 * ``"min_norm"`` — ``a = 0``: ``τ = (Jᵀ)⁺ f_d``, the least-norm torques (eq. 7's first term).
 * ``"proportional"`` — eqs. 10–13 with the criterion ``H(α)`` of eq. 12, whose formula is lost
-  from the paper's text. **Reconstruction** (documented decision): wheel ``i`` can transmit at
-  most ``μ_i f_i`` of traction (eq. 9; ``f_i`` its normal force), so its *friction utilisation*
-  is ``u_i = |τ_i| / (μ_i f_i r)``; the paper asks that the driving forces be proportional to the
-  normal forces. We maximise ``H(α) = −Σ_i (τ_i(α) / (μ_i f_i))²`` (``r`` is a common factor and
-  dropped), i.e. minimise the sum of squared utilisations, which spreads the traction over the
-  wheels in proportion to what each can carry. Each ``τ_i(α) = τ0_i + α n_i`` is affine in
-  ``α``, so ``H`` is a concave quadratic in ``α`` (the paper: "a quadratic equation in α") and
-  ``dH/dα = 0`` gives, with ``w_i = 1/(μ_i f_i)``::
+  from the paper's text. What the text keeps: wheel ``i`` can transmit at most ``μ_i f_i`` of
+  traction (eq. 9; ``f_i`` its normal force), "for avoiding the slippage, the desirable driving
+  forces should be proportional to the reaction forces", α is chosen "so that the value of H
+  becomes maximum", and "the optimal α can easily be obtained by solving a quadratic equation
+  in α". Two reconstructions (``criterion=``), both documented decisions:
 
-      α_opt = − Σ w_i² τ0_i n_i / Σ w_i² n_i²          (eq. 13: τ_opt = τ0 + α_opt n)
+  - ``"utilisation"`` (default, the study's main reading) — maximise
+    ``H(α) = −Σ_i (τ_i(α) / (μ_i f_i))²`` (``r`` is a common factor and dropped), i.e.
+    minimise the sum of squared *friction utilisations* ``u_i = |τ_i| / (μ_i f_i r)``: the
+    least-squares relaxation of "proportional" (``u_i`` all equal is generally out of reach,
+    one free parameter for four ratios), which also penalises the torques' size. ``H`` is a
+    concave quadratic in ``α``, so ``dH/dα = 0`` is a *linear* equation — not the paper's
+    quadratic one. With ``w_i = 1/(μ_i f_i)``::
 
-  Exact proportionality ``τ_i = c μ_i f_i`` is generally out of reach (one free parameter, four
-  ratios); ``H`` is its least-squares relaxation. Equivalently ``τ_opt`` is the weighted least-
-  norm solution ``argmin ||W τ||² s.t. Jᵀ τ = f_d`` with ``W = diag(w)``, which is how the QP
-  form (:mod:`wbc.papers.omni.distribution_tasks`) states it; for ``N − 3 > 1`` redundant
-  torques the same formula holds with ``α`` a vector (normal equations in the null-space
-  basis). Being a sum of squares, ``H`` usually lowers the *largest* utilisation against
-  ``"min_norm"`` but not always (measured over 865 random arm configurations of ``omni4_arm6``
-  where no wheel lifts, μ = 0.5, random wrenches: lower in 85 %, median ratio 0.56, above 1.1
-  in the worst 5 %).
+        α_opt = − Σ w_i² τ0_i n_i / Σ w_i² n_i²          (eq. 13: τ_opt = τ0 + α_opt n)
+
+    Equivalently ``τ_opt`` is the weighted least-norm solution ``argmin ||W τ||² s.t.
+    Jᵀ τ = f_d`` with ``W = diag(w)``, which is how the QP form
+    (:mod:`wbc.papers.omni.distribution_tasks`) states it; for ``N − 3 > 1`` redundant torques
+    the same formula holds with ``α`` a vector (normal equations in the null-space basis).
+    Being a sum of squares, it usually lowers the *largest* utilisation against
+    ``"min_norm"`` but not always (measured over 865 random arm configurations of
+    ``omni4_arm6`` where no wheel lifts, μ = 0.5, random wrenches: lower in 85 %, median ratio
+    0.56, above 1.1 in the worst 5 %).
+  - ``"ratios"`` — the text read literally: the driving forces proportional to the normal
+    forces means every wheel using the same fraction of its friction, ``u_i`` all equal, and
+    ``H(α)`` measures how nearly they are, as the squared cosine of the angle between the
+    vector of ``|u_i(α)|`` and ``(1, …, 1)``::
+
+        H(α) = (Σ_i |u_i(α)|)² / (N Σ_i u_i(α)²)        ∈ [0, 1], 1 iff every |u_i| is equal
+
+    (``u_i = w_i τ_i(α)``; ``1 / H − 1`` is the squared coefficient of variation of the
+    ``|u_i|``). Where no ``τ_i`` changes sign (signs ``s_i``), ``Σ |u_i| = A + B α`` and
+    ``Σ u_i² = P + 2 Q α + R α²`` (``a = W τ0``, ``b = W n``: ``A = sᵀa``, ``B = sᵀb``,
+    ``P = aᵀa``, ``Q = aᵀb``, ``R = bᵀb``), so ``dH/dα = 0`` is the quadratic equation
+    ``(A + B α) ((B P − A Q) + (B Q − A R) α) = 0``: one root makes ``H = 0``, the other is the
+    maximum — the paper's "solving a quadratic equation in α" and keeping the root that
+    maximises ``H``. ``H`` is scale-free: it asks for equal utilisations, not for small ones,
+    so it may load a lightly loaded wheel that ``"utilisation"`` leaves nearly idle. Exact on
+    the one-dimensional null space: the roots of each sign pattern's quadratic and the
+    breakpoints ``τ_i = 0`` are the candidates, the best is taken (the least ``|α|`` among
+    equals). Should ``H``'s supremum lie at ``|α| → ∞`` (``W n`` itself more nearly uniform
+    than any finite member) it is not attained, and the best finite candidate is returned
+    (unbounded internal torques serve nothing; not met on 3000 random instances). A zero wrench
+    gives zero torques. Only ``N − 3 ≤ 1``. (A first literal reading, the cosine between
+    ``|τ|`` and ``μ f``, weighs each wheel by its capacity, so it overloads the light wheels
+    it barely counts — 10 to 20 times min-norm's slip in the study's runs: dropped.)
+
+  Consequences on the study's claims: ``wbc study omni`` runs both readings
+  (``"proportional"`` and ``"proportional_ratios"``) and reports both.
 * ``"minmax"`` (beyond the paper) — minimise the largest utilisation ``max_i |τ_i| w_i`` (an LP
   over ``(τ, t)``). It is the exact no-slip criterion: no wheel slips iff ``max_i u_i ≤ 1``, so
   if any distribution avoids slip, this one does. Closed form on the one-dimensional null
@@ -45,17 +75,21 @@ The functions are plain numpy, the oracles of the QP forms and usable as control
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from wbc.checks import checked_2d, checked_vector
 from wbc.errors import InvalidValueError, ShapeError
 from wbc.solvers.linalg import pinv
 
-__all__ = ["DISTRIBUTION_METHODS", "friction_utilisation", "torque_distribution",
-           "torque_null_space"]
+__all__ = ["DISTRIBUTION_METHODS", "H_CRITERIA", "equal_ratios", "friction_utilisation",
+           "torque_distribution", "torque_null_space"]
 
 #: the methods of :func:`torque_distribution`.
 DISTRIBUTION_METHODS = ("min_norm", "proportional", "minmax")
+#: the reconstructions of eq. 12's ``H(α)`` for ``"proportional"`` (module docstring).
+H_CRITERIA = ("utilisation", "ratios")
 
 
 def checked_wheel_jacobian(J) -> np.ndarray:
@@ -96,6 +130,17 @@ def torque_null_space(J) -> np.ndarray:
     return basis * signs
 
 
+@lru_cache(maxsize=32)
+def _wheel_basis(shape: tuple[int, int], data: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """``((Jᵀ)⁺, null space of Jᵀ)`` of the float64 ``J`` given by its shape and bytes, checked
+    (:func:`checked_wheel_jacobian`) — computed once per Jacobian: a controller or a study
+    calls :func:`torque_distribution` with the same ``J`` every tick. Read-only arrays."""
+    J = checked_wheel_jacobian(np.frombuffer(data).reshape(shape))
+    pseudo_inverse, null = pinv(J.T), torque_null_space(J)
+    pseudo_inverse.flags.writeable = null.flags.writeable = False
+    return pseudo_inverse, null
+
+
 def friction_utilisation(tau, normal_forces, radius: float, mu=1.0) -> np.ndarray:
     """``u_i = |τ_i| / (μ_i f_i r)``: wheel ``i``'s traction over its friction limit (eq. 9).
 
@@ -114,8 +159,8 @@ def friction_utilisation(tau, normal_forces, radius: float, mu=1.0) -> np.ndarra
     return np.abs(tau) / (_capacity(normal_forces, mu, tau.size) * radius)
 
 
-def torque_distribution(J, f_d, normal_forces, mu=1.0, method: str = "proportional"
-                        ) -> np.ndarray:
+def torque_distribution(J, f_d, normal_forces, mu=1.0, method: str = "proportional",
+                        criterion: str = "utilisation") -> np.ndarray:
     """Wheel torques ``τ`` [N m] with ``Jᵀ τ = f_d``, chosen by ``method`` (module docstring).
 
     Args:
@@ -125,26 +170,36 @@ def torque_distribution(J, f_d, normal_forces, mu=1.0, method: str = "proportion
         mu: friction coefficients ``μ_i``, scalar or (N,), > 0.
         method: ``"min_norm"`` (eq. 7, a = 0), ``"proportional"`` (eqs. 10–13, reconstructed
             ``H``) or ``"minmax"`` (least largest friction utilisation).
+        criterion: the reconstruction of ``H`` for ``"proportional"``: ``"utilisation"``
+            (least squared friction utilisations) or ``"ratios"`` (the utilisations most
+            nearly equal; one redundant torque only); ignored by the other methods.
 
     Returns:
         ``τ``, shape (N,).
 
     Raises:
         ShapeError, NonFiniteError, InvalidValueError: bad input (non-positive normal forces or
-        friction coefficients, rank-deficient ``J``, unknown method, ``"minmax"`` with more
-        than one redundant torque).
+        friction coefficients, rank-deficient ``J``, unknown method or criterion, ``"minmax"``
+        or ``"ratios"`` with more than one redundant torque).
     """
     if method not in DISTRIBUTION_METHODS:
         raise InvalidValueError(f"method must be one of {DISTRIBUTION_METHODS}, got {method!r}")
-    J = checked_wheel_jacobian(J)
+    if criterion not in H_CRITERIA:
+        raise InvalidValueError(f"criterion must be one of {H_CRITERIA}, got {criterion!r}")
+    J = checked_2d(J, "J")
+    pseudo_inverse, null = _wheel_basis(J.shape, J.tobytes())
     f_d = checked_vector(f_d, 3, "f_d", broadcast=False)
     w = 1.0 / _capacity(normal_forces, mu, J.shape[0])
-    tau0 = pinv(J.T) @ f_d
+    tau0 = pseudo_inverse @ f_d
     if method == "min_norm":
         return tau0
-    null = torque_null_space(J)
     if null.shape[1] == 0:  # three wheels: no redundancy, every method gives τ0
         return tau0
+    if method == "proportional" and criterion == "ratios":
+        if null.shape[1] > 1:
+            raise InvalidValueError(f"criterion 'ratios' is implemented for one redundant "
+                                    f"torque (4 wheels), got {null.shape[1]}")
+        return tau0 + null[:, 0] * equal_ratios(w * tau0, w * null[:, 0])[0]
     # maximiser of H: normal equations of min ||W (τ0 + N α)||² in α
     wn = w[:, None] * null
     alpha = -np.linalg.solve(wn.T @ wn, wn.T @ (w * tau0))
@@ -180,3 +235,40 @@ def _minmax_alpha(a: np.ndarray, b: np.ndarray) -> float:
     if lo > hi:  # round-off at a single minimiser
         return float(alphas[values.argmin()])
     return float(np.clip(0.0, lo, hi))
+
+
+def equal_ratios(a, b) -> tuple[float, float]:
+    """The maximiser ``α`` of the ``"ratios"`` criterion and its value (module docstring):
+    ``H(α) = (Σ |a_i + α b_i|)² / (N Σ (a_i + α b_i)²)``, the utilisations ``u(α) = a + α b``.
+
+    Args:
+        a: ``W τ0``, the least-norm torques' utilisations (N,) (any common scale).
+        b: ``W n``, the null-space direction's (N,).
+
+    Returns:
+        ``(α, H [-])``; ``(0, 0)`` for a zero ``a`` (a zero wrench: zero torques).
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    P, Q, R = float(a @ a), float(a @ b), float(b @ b)
+    if P == 0.0:
+        return 0.0, 0.0
+    moving = b != 0.0
+    breaks = np.unique(-a[moving] / b[moving])  # where a utilisation changes sign
+    # one sign pattern per interval between breakpoints (and beyond the outer ones)
+    probes = np.concatenate([breaks[:1] - 1.0, 0.5 * (breaks[1:] + breaks[:-1]),
+                             breaks[-1:] + 1.0]) if breaks.size else np.zeros(1)
+    candidates = [breaks]
+    for probe in probes:
+        s = np.sign(a + probe * b)
+        A, B = float(s @ a), float(s @ b)
+        den = B * Q - A * R
+        if den != 0.0:  # the maximising root of (A + B α)((B P − A Q) + (B Q − A R) α) = 0
+            candidates.append(np.array([(A * Q - B * P) / den]))
+    alphas = np.concatenate(candidates)
+    u = a[None, :] + alphas[:, None] * b[None, :]
+    values = np.abs(u).sum(axis=1) ** 2 / (a.size * np.einsum("ij,ij->i", u, u))
+    best = values.max()
+    # among (round-off) equals, the least |α|: the least-norm member
+    ties = np.flatnonzero(values >= best - 1e-12 * best)
+    i = ties[np.argmin(np.abs(alphas[ties]))]
+    return float(alphas[i]), float(values[i])

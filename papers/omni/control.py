@@ -23,6 +23,14 @@
   parameters, then solves the distribution (on daqp itself one C call): ``wbc study omni``
   measured 9.6 µs against 92 µs for the ordinary path (median, interleaved, daqp).
 
+  The paper's normal forces (eqs. 8–9) are the statics'. With ``com_height=`` the controller
+  also models the *load transfer* of the acceleration it commands: the platform force
+  ``(F_x, F_y)`` of ``f_d`` acts through the centre of mass at height ``h`` above the floor,
+  and the moment balance about the contact plane moves ``h F`` of moment between the wheels
+  (:func:`load_transfer`) — the effect the statics neglect (``omni4_arm6``: h = 0.39 m; at
+  1 m/s² the lightly loaded wheel's 40 N become 13 N or 68 N). ``h`` is the controller's
+  belief; a plant's true height may differ (the study's documented mismatch).
+
 Both are plain objects with ``step(q, v, **references) -> command`` (the wheels' command,
 ``(4,)``) that :class:`wbc.sim.Simulation` runs; ``q = [x, y, φ, arm joints]`` is the
 controller's (odometry) estimate and ``v`` the measured body twist + arm rates. References:
@@ -46,11 +54,12 @@ from wbc.errors import InvalidValueError, WbcError
 from wbc.robots.omni import ARM_MASS, GRAVITY, PLATFORM_MASS, normal_forces, system_com
 from wbc.robots.symbolic import symbolic_center_of_mass
 
-from .closed_form import DISTRIBUTION_METHODS, torque_distribution
+from .closed_form import DISTRIBUTION_METHODS, H_CRITERIA, torque_distribution
 from .distribution_tasks import TorqueDistribution
 from .dynamics import YAW_INERTIA
 
-__all__ = ["OmniForceControl", "OmniPositionControl", "platform_error"]
+__all__ = ["LIFTED_LOAD", "OmniForceControl", "OmniPositionControl", "load_transfer",
+           "platform_error"]
 
 
 def platform_error(q, target) -> np.ndarray:
@@ -124,9 +133,38 @@ class OmniPositionControl:
 FORCE_MARGIN = 1e-9
 #: marks a reference not given (``None`` is a value, which the ordinary path refuses)
 _MISSING = object()
+#: the load [N per N of a wheel's share of the weight, m g / N] the load-transfer model leaves a
+#: wheel it would lift: a lifted wheel transmits no traction, and the distributions then give it
+#: (almost) no torque — they need a positive load to weigh it (``com_height=``). 1 %: small
+#: enough that the wheel's torque is negligible, large enough to keep the distribution's
+#: weights within four orders of magnitude of each other.
+LIFTED_LOAD = 0.01
 
 
-def model_function(robot, inertia: np.ndarray, kp: np.ndarray, kv: np.ndarray) -> ca.Function:
+def load_transfer(wheel_xy, height: float) -> np.ndarray:
+    """``T`` (N, 2) [-]: the change of the wheels' normal forces [N] per platform force
+    ``(F_x, F_y)`` [N] applied at the floor by the wheels, ``Δf = T F``.
+
+    The wheels' traction ``F = m a`` accelerates the centre of mass, which lies ``height`` [m]
+    above the floor: the moment balance about the contact plane becomes
+    ``Σ f_i (x_i, y_i) = m g (x_c, y_c) − height · F`` (the weight's moment less the inertial
+    force's), split over the wheels as the statics split theirs
+    (:func:`wbc.robots.normal_forces`' minimum-norm ``A⁺``): ``T = −height · A⁺[:, 1:3]``.
+    Accelerating towards a wheel unloads it.
+
+    Args:
+        wheel_xy: contact points (N, 2) [m] in the platform frame (not all on one line).
+        height: centre of mass above the floor [m], ≥ 0.
+    """
+    wheel_xy = np.asarray(wheel_xy, dtype=float)
+    if not (np.isfinite(height) and height >= 0):
+        raise InvalidValueError(f"com_height must be a finite height >= 0 [m], got {height!r}")
+    A = np.vstack([np.ones(len(wheel_xy)), wheel_xy.T])
+    return -float(height) * (A.T @ np.linalg.inv(A @ A.T))[:, 1:3]
+
+
+def model_function(robot, inertia: np.ndarray, kp: np.ndarray, kv: np.ndarray,
+                   transfer: np.ndarray | None = None) -> ca.Function:
     """Eq. 6, the whole system's centre of mass and the wheels' normal forces as one CasADi
     function — what :meth:`OmniForceControl.step` computes before the distribution, for its
     fast path.
@@ -139,9 +177,10 @@ def model_function(robot, inertia: np.ndarray, kp: np.ndarray, kv: np.ndarray) -
 
     Outputs: ``f_d`` (3,) the platform-frame wrench [N, N, N m]; ``normal_forces`` (N,) [N]
     (:func:`wbc.robots.normal_forces` before its clipping at 0, the weight's split by the
-    constant ``Aᵀ (A Aᵀ)⁻¹``); ``ok`` — 1 when every normal force exceeds
-    :data:`FORCE_MARGIN` per newton of weight and the inputs and ``f_d`` are finite (else the
-    ordinary path answers, and raises as it does).
+    constant ``Aᵀ (A Aᵀ)⁻¹``; with ``transfer`` (:func:`load_transfer`'s ``T``) plus
+    ``T f_d[:2]``, at least :data:`LIFTED_LOAD` of a wheel's share); ``ok`` — 1 when every
+    static normal force exceeds :data:`FORCE_MARGIN` per newton of weight and the inputs and
+    ``f_d`` are finite (else the ordinary path answers, and raises as it does).
 
     Raises:
         WbcError: the arm has joints the symbolic kinematics do not cover.
@@ -173,11 +212,15 @@ def model_function(robot, inertia: np.ndarray, kp: np.ndarray, kv: np.ndarray) -
     A = np.vstack([np.ones(len(wheel_xy)), wheel_xy.T])
     weight = (PLATFORM_MASS + ARM_MASS) * GRAVITY
     forces = ca.DM(A.T @ np.linalg.inv(A @ A.T)) @ (weight * ca.vertcat(1.0, com[0], com[1]))
+    static = forces
+    if transfer is not None:
+        forces = ca.fmax(forces + ca.DM(transfer) @ f_d[:2],
+                         LIFTED_LOAD * weight / len(wheel_xy))
     # comparisons are false on NaN; the inputs' sum is tested too, as a zero gain would
     # otherwise drop a non-finite reference from f_d (CasADi simplifies 0·x to 0)
     ok = ca.fabs(ca.sum1(ca.vertcat(q, v, target, velocity, acceleration))) < ca.inf
-    for i in range(forces.shape[0]):
-        ok = ca.logic_and(ok, forces[i] > FORCE_MARGIN * weight)
+    for i in range(static.shape[0]):
+        ok = ca.logic_and(ok, static[i] > FORCE_MARGIN * weight)
     for i in range(3):
         ok = ca.logic_and(ok, ca.fabs(f_d[i]) < ca.inf)
     return ca.Function("omni_force_model", [q, v, target, heading_error, velocity, acceleration],
@@ -199,6 +242,9 @@ class OmniForceControl:
         robot: a mobile manipulator on an omni base (``"omni4_arm6"``).
         method: distribution of the closed forms, ``"min_norm"``, ``"proportional"`` or
             ``"minmax"`` (ignored when ``distribution`` is given).
+        criterion: the closed form's reconstruction of eq. 12's ``H`` for ``"proportional"``,
+            ``"utilisation"`` or ``"ratios"`` (:mod:`~wbc.papers.omni.closed_form`; ignored
+            when ``distribution`` is given).
         mu: friction coefficient(s) μ_i the distribution assumes (scalar or (4,), > 0).
         kp: position gains ``k_p`` (x, y, yaw) [N/m, N/m, N m/rad].
         kv: velocity gains ``k_v`` (x, y, yaw) [N s/m, N s/m, N m s/rad].
@@ -207,6 +253,11 @@ class OmniForceControl:
         distribution: ``fn(f_d (3,), normal_forces (4,)) -> tau (4,)`` replacing the closed
             form (e.g. a :class:`wbc.tasks.TorqueDistribution`; its ``last_solution`` becomes
             this controller's).
+        com_height: ``None`` (default): the normal forces are the statics' (eqs. 8–9, as the
+            paper). A height [m] ≥ 0: the height of the centre of mass above the floor the
+            controller assumes, and the normal forces include the load transfer of the tick's
+            ``f_d`` (:func:`load_transfer`; a wheel it would lift keeps :data:`LIFTED_LOAD` of
+            its share of the weight). ``0`` gives the statics' forces.
         fused: the fast path — eq. 6, the centre of mass and the normal forces as one generated
             C call (:func:`model_function`) writing ``f_d`` and the normal forces straight into
             a :class:`TorqueDistribution`'s parameters, then its solve (itself one C call when
@@ -225,18 +276,25 @@ class OmniForceControl:
 
     Attributes:
         last_wrench: the last ``f_d`` in the platform frame [N, N, N m];
-        last_normal_forces: the normal forces [N] it was distributed with.
+        last_normal_forces: the normal forces [N] it was distributed with;
+        com_height: the assumed height [m] (``None``: statics).
     """
 
     def __init__(self, robot, method: str = "proportional", mu=0.5, kp=None, kv=None,
                  yaw_inertia: float = YAW_INERTIA,
-                 distribution: Callable | None = None, fused: bool | str = "auto") -> None:
+                 distribution: Callable | None = None, fused: bool | str = "auto",
+                 criterion: str = "utilisation", com_height: float | None = None) -> None:
         if fused not in (True, False, "auto"):
             raise WbcError(f"fused must be True, False or 'auto', got {fused!r}")
         self.robot = robot
         self.jacobian = np.asarray(robot.base.jacobian, dtype=float)
         self._wheel_xy = np.asarray(robot.base.wheel_positions, dtype=float)
         self.mass = float(system_com(robot, robot.neutral())[0])
+        self.com_height = com_height
+        #: load_transfer's T, or None (statics)
+        self._transfer = (None if com_height is None
+                          else load_transfer(self._wheel_xy, com_height))
+        self._lifted = LIFTED_LOAD * self.mass * GRAVITY / len(self._wheel_xy)
         if not (np.isfinite(yaw_inertia) and yaw_inertia > 0):
             raise InvalidValueError(f"yaw_inertia must be > 0 [kg m²], got {yaw_inertia!r}")
         self.inertia = np.array([self.mass, self.mass, float(yaw_inertia)])
@@ -249,7 +307,11 @@ class OmniForceControl:
             if method not in DISTRIBUTION_METHODS:
                 raise InvalidValueError(f"method must be one of {DISTRIBUTION_METHODS}, got "
                                         f"{method!r}")
-            distribution = partial(torque_distribution, self.jacobian, mu=mu, method=method)
+            if criterion not in H_CRITERIA:
+                raise InvalidValueError(f"criterion must be one of {H_CRITERIA}, got "
+                                        f"{criterion!r}")
+            distribution = partial(torque_distribution, self.jacobian, mu=mu, method=method,
+                                   criterion=criterion)
         self.distribution = distribution
         self.last_wrench = np.zeros(3)
         self.last_normal_forces = np.zeros(self.jacobian.shape[0])
@@ -271,7 +333,8 @@ class OmniForceControl:
             self.fused_reason = "no C compiler found ($CC, default cc)"
         else:
             try:
-                model = compiled_c(model_function(self.robot, self.inertia, self.kp, self.kv))
+                model = compiled_c(model_function(self.robot, self.inertia, self.kp, self.kv,
+                                                  self._transfer))
             except (WbcError, RuntimeError) as err:  # joints without symbolic forms; cc failed
                 self.fused_reason = f"the model function cannot be generated: {err}"
             else:
@@ -328,7 +391,10 @@ class OmniForceControl:
                  + self.kp * error)
         self.last_wrench = _to_platform(phi, world)
         _, com = system_com(self.robot, q, frame="base")
-        self.last_normal_forces = normal_forces(self._wheel_xy, com[:2], self.mass)
+        forces = normal_forces(self._wheel_xy, com[:2], self.mass)
+        if self._transfer is not None:
+            forces = np.maximum(forces + self._transfer @ self.last_wrench[:2], self._lifted)
+        self.last_normal_forces = forces
         return np.asarray(self.distribution(self.last_wrench, self.last_normal_forces),
                           dtype=float)
 

@@ -242,31 +242,36 @@ class OmniDynamics(Actuation):
         rates = self._rates
         normal = self.normal_forces(state.robot, state.q)
         limit = self._mu * normal
-        noise = self.torque_noise * state.rng.standard_normal(self._n)
+        # an unpowered wheel gets no noise either
+        noise = self.torque_noise * state.rng.standard_normal(self._n) * (self._gain != 0)
         kp, kv, ki = self.gains
         h, R, G, M_inv = self._h, self._radii, self._G, self._M_inv
-        if self.servo == "angle_target":  # as angles since the tick's start [rad]
+        inertia, A, A_inv = self.wheel_inertia, self._A, self._A_inv
+        safe_limit = np.maximum(limit, 1e-300)
+        torque_servo = self.servo == "torque"
+        if torque_servo:  # the torques hold over the tick
+            tau = self._gain * command + noise
+            drive = h * R * tau / inertia
+        elif self.servo == "angle_target":  # as angles since the tick's start [rad]
             command = command - self._angle
         turned = np.zeros(self._n)  # wheel angle since the tick's start [rad]
         slid = np.zeros(self._n)
         peak = np.zeros(self._n)
         torque_sum = np.zeros(self._n)
         for _ in range(self.substeps):
-            if self.servo == "torque":
-                wanted = command
-            else:  # eq. 4 on the wheel's own encoder; the target holds over the tick
+            if not torque_servo:  # eq. 4 on the wheel's own encoder; the target holds
                 error = command - turned
                 self._integral += error * h
-                wanted = kp * error - kv * rates + ki * self._integral
-            tau = self._gain * wanted + noise * (self._gain != 0)
+                tau = self._gain * (kp * error - kv * rates + ki * self._integral) + noise
+                drive = h * R * tau / inertia
             coriolis = np.array([v[2] * v[1], -v[2] * v[0], 0.0])
-            s_free = R * rates + h * R * tau / self.wheel_inertia - G @ (v + h * coriolis)
-            F, slip = coulomb_forces(self._A, s_free, limit, self._A_inv)
-            rates = rates + h * (tau - R * F) / self.wheel_inertia
+            s_free = R * rates + drive - G @ (v + h * coriolis)
+            F, slip = coulomb_forces(A, s_free, limit, A_inv)
+            rates = rates + h * (tau - R * F) / inertia
             v = v + h * (coriolis + M_inv @ (G.T @ F))
             turned += h * rates
             slid += h * np.abs(slip)
-            peak = np.maximum(peak, np.abs(F) / np.maximum(limit, 1e-300))
+            peak = np.maximum(peak, np.abs(F) / safe_limit)
             torque_sum += tau
         self._rates = rates
         self._angle += turned
