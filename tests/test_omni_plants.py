@@ -4,8 +4,6 @@ documented run's claims are the ones computed before these options existed."""
 
 from __future__ import annotations
 
-import json
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -15,12 +13,15 @@ from wbc.errors import UnknownNameError  # noqa: E402
 from wbc.experiments.studies import omni  # noqa: E402
 from wbc.experiments.studies.study import StudyOptions  # noqa: E402
 
-#: claims of `wbc study omni --quick` computed before the plant options were added (key numbers)
-BEFORE = {"two_wheel_shortfall": ({"true_cm": 40.17, "odometry_cm": 40.58, "error_pct": 1.18},
-                                  True),
-          "four_wheel_error_reference": ({"error_cm": 0.5, "error_pct": 0.89}, False),
+#: claims of `wbc study omni --quick` computed before the plant options were added (key numbers;
+#: the position-control anchors as issue #29 re-measured them: at the paper's speed, with the
+#: magnitude criterion)
+BEFORE = {"two_wheel_shortfall": ({"true_cm": 40.02, "odometry_cm": 40.18, "shortfall_cm": 0.16,
+                                   "shortfall_pct": 0.4, "goal_offset_cm": 0.02}, False),
+          "four_wheel_error_reference": ({"error_cm": 0.24, "error_pct": 0.42}, False),
           "unequal_normal_forces": ({"max_over_min": 18.1}, True),
-          "proportional_less_slip_y": ({"proportional_mm": 0.204, "min_norm_mm": 29.39}, True),
+          "proportional_less_slip_y": ({"min_norm_mm": 29.39, "proportional_mm": 0.204,
+                                        "ratios_mm": 3.351, "minmax_mm": 0.537}, True),
           "minmax_at_most_proportional_diagonal": ({"minmax_mm": 13.3,
                                                     "proportional_mm": 24.342}, True)}
 SWEEP_CLAIMS = {"proportional_less_slip_sweep", "minmax_at_most_proportional_sweep"}
@@ -31,10 +32,9 @@ def _claims(data) -> dict:
 
 
 @pytest.fixture(scope="module")
-def kinematic(tmp_path_factory):
-    out = tmp_path_factory.mktemp("kinematic")
-    assert omni.main(["--quick", "--out", str(out)]) == 0
-    return json.loads((out / "omni" / "omni.json").read_text())
+def kinematic(quick_studies):
+    # the session's quick run (conftest.py), which the other study tests read too
+    return quick_studies.data("omni")
 
 
 @pytest.fixture(scope="module")
@@ -54,11 +54,10 @@ def test_default_options_give_the_claims_computed_before(kinematic):
     assert kinematic["parameters"]["gain_error"] == omni.PARAMETERS["gain_error"]
 
 
-def test_the_quick_study_on_mujoco_keeps_the_claim_ids(kinematic, tmp_path):
+def test_the_quick_study_on_mujoco_keeps_the_claim_ids(kinematic, quick_studies):
     pytest.importorskip("mujoco")
-    assert omni.main(["--quick", "--plant", "mujoco", "--out", str(tmp_path)]) == 0
-    folder = tmp_path / "omni"
-    data = json.loads((folder / "omni.json").read_text())
+    folder = quick_studies.study("omni", "mujoco")
+    data = quick_studies.data("omni", "mujoco")
     assert data["plant"] == "mujoco"
     assert [c["id"] for c in data["claims"]] == [c["id"] for c in kinematic["claims"]]
     timing = data["plant_timing"]
@@ -67,7 +66,7 @@ def test_the_quick_study_on_mujoco_keeps_the_claim_ids(kinematic, tmp_path):
         assert (folder / figure).stat().st_size > 0
     # physics, not the kinematic plant's model: slip from the rollers, saturation recorded,
     # the unpowered wheels of the y runs produce no torque
-    y = data["runs"]["y"]["position"]
+    y = data["runs"]["y_paper_speed"]["position"]
     assert len(y["wheel_saturation"]) == len(y["t"])
     assert all(row[0] == 0.0 and row[2] == 0.0 for row in y["wheel_torque"])
     assert data["runs"]["diagonal"]["min_norm"]["summary"]["total_slip_m"] > 0.0

@@ -10,8 +10,9 @@ from helpers import assert_study_contract
 from wbc.experiments import reproduce
 
 
-def test_reproduce_quick_writes_the_report(tmp_path):
-    code = reproduce.main(["--quick", "--out", str(tmp_path)])
+def test_reproduce_quick_writes_the_report(quick_report):
+    # the session's run (conftest.py), whose studies the study and plant tests read too
+    code, tmp_path = quick_report
     report = (tmp_path / "REPORT.md").read_text()
     logs = {p.name: p.read_text()[-2000:] for p in (tmp_path / "logs").iterdir()}
     assert code == 0, f"a step failed:\n{report[:3000]}\n{logs}"
@@ -38,7 +39,9 @@ def test_reproduce_quick_writes_the_report(tmp_path):
 
 def test_a_failing_step_does_not_lose_the_others(tmp_path, monkeypatch):
     """One study that raises is reported as failed with its reason; the others still run."""
-    steps = reproduce.plan(tmp_path, quick=True)[:2]
+    # the broken study first, then the cheapest real step (the quick sorour study)
+    steps = reproduce.plan(tmp_path, quick=True)[1::-1]
+    assert [s.name for s in steps] == ["study petric", "study sorour"]
     steps[0].module = "wbc.experiments.no_such_study"
     monkeypatch.setattr(reproduce, "plan", lambda out, quick: steps)
     assert reproduce.main(["--quick", "--out", str(tmp_path)]) == 1

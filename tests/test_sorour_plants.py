@@ -3,14 +3,12 @@ paper's steering controller driving the MuJoCo plant's steer and drive joints.""
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pytest
 
 import wbc
-from wbc.experiments.cli import main as cli_main
 from wbc.experiments.studies import sorour
 from wbc.experiments.studies.study import StudyOptions
 from wbc.robots import load
@@ -21,10 +19,9 @@ def _claims(result) -> dict:
 
 
 @pytest.fixture(scope="module")
-def kinematic(tmp_path_factory):
-    out = tmp_path_factory.mktemp("sorour_kin")
-    assert cli_main(["study", "sorour", "--quick", "--out", str(out)]) == 0
-    return json.loads((out / "sorour" / "sorour.json").read_text())
+def kinematic(quick_studies):
+    # the session's quick run (conftest.py), which the other study tests read too
+    return quick_studies.data("sorour")
 
 
 def test_default_run_keeps_its_claims(kinematic):
@@ -44,16 +41,15 @@ def test_default_run_keeps_its_claims(kinematic):
     assert "step_median_s" not in kinematic["plant_timing"]
 
 
-def test_mujoco_run_has_the_same_claims_and_records_physics(kinematic, tmp_path):
+def test_mujoco_run_has_the_same_claims_and_records_physics(kinematic, quick_studies):
     pytest.importorskip("mujoco")
-    assert cli_main(["study", "sorour", "--quick", "--plant", "mujoco", "--out",
-                     str(tmp_path)]) == 0
-    data = json.loads((tmp_path / "sorour" / "sorour.json").read_text())
+    folder = quick_studies.study("sorour", "mujoco")
+    data = quick_studies.data("sorour", "mujoco")
     assert data["plant"] == "mujoco"
     assert [c["id"] for c in data["claims"]] == [c["id"] for c in kinematic["claims"]]
     assert data["figures"] == kinematic["figures"]
     for figure in data["figures"]:
-        assert (tmp_path / "sorour" / figure).stat().st_size > 0
+        assert (folder / figure).stat().st_size > 0
     timing = data["plant_timing"]
     assert timing["steps"] == 3 * 400 and 0 < timing["step_median_s"] <= timing["step_p95_s"]
     run = data["runs"]["table_ii"]["compensated"]
@@ -69,7 +65,7 @@ def test_mujoco_run_has_the_same_claims_and_records_physics(kinematic, tmp_path)
     assert "**Plant: MuJoCo.**" in data["summary"]
 
 
-def test_seed_restages_the_runs_reproducibly(tmp_path):
+def test_seed_restages_the_runs_reproducibly(tmp_path, kinematic):
     options = StudyOptions(seed=3, main_only=True)
     first = sorour.run("daqp", tmp_path / "a", True, options)
     second = sorour.run("daqp", tmp_path / "b", True, options)
@@ -84,8 +80,8 @@ def test_seed_restages_the_runs_reproducibly(tmp_path):
     assert np.abs(moved[:, 3:]).max() <= math.radians(2.0)
     other = sorour.staging(4)
     assert not np.allclose(other[2], base) and other[1] != poses
-    assert first.parameters["q0"] != sorour.run("daqp", tmp_path / "c", True,
-                                                StudyOptions(main_only=True)).parameters["q0"]
+    # the documented run's start (the session's quick run: main_only leaves the staging as is)
+    assert first.parameters["q0"] != kinematic["parameters"]["q0"]
     # main_only: no figures, no timing replays, no replay record, nothing written meanwhile
     assert first.figures == [] and first.timing == {} and first.replays == {}
     assert not (tmp_path / "a").exists()

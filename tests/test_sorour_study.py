@@ -2,21 +2,17 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 from helpers import assert_study_contract
 
-from wbc.experiments.cli import main as cli_main
 from wbc.experiments.studies import sorour
 
 
 @pytest.fixture(scope="module")
-def study(tmp_path_factory):
-    out = tmp_path_factory.mktemp("sorour")
-    assert cli_main(["study", "sorour", "--quick", "--out", str(out)]) == 0
-    return out / "sorour", json.loads((out / "sorour" / "sorour.json").read_text())
+def study(quick_studies):
+    # the session's quick run (conftest.py), which the other study tests read too
+    return quick_studies.study("sorour"), quick_studies.data("sorour")
 
 
 def test_contract(study):

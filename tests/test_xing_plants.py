@@ -3,8 +3,6 @@ horizons; the claims are still computed from the runs)."""
 
 from __future__ import annotations
 
-import json
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -25,11 +23,10 @@ def claims_of(result) -> dict:
 
 
 @pytest.fixture(scope="module")
-def kinematic(tmp_path_factory):
+def kinematic(quick_studies):
     """The quick documented run on the kinematic plant, written as `wbc study` writes it."""
-    out = tmp_path_factory.mktemp("kinematic")
-    assert xing.main(["--quick", "--out", str(out)]) == 0
-    return json.loads((out / "xing" / "xing.json").read_text())
+    # the session's quick run (conftest.py), which the other study tests read too
+    return quick_studies.data("xing")
 
 
 def test_default_options_give_the_claims_computed_before(kinematic):
@@ -48,16 +45,15 @@ def test_default_options_give_the_claims_computed_before(kinematic):
                      "traditional_base_circle_r025", "max_error_circle_r010",
                      "max_error_circle_r025", "max_error_axes_r025", "base_time_reduction_r025",
                      "base_rms_r025", "no_limit_violation", "tick_time",
-                     "qp_equals_closed_form"}
+                     "tick_target", "qp_equals_closed_form"}  # tick_target: the fast path (#28)
     assert kinematic["parameters"]["odometry"]["scale"] == [0.03, -0.03, 0.03]
     assert kinematic["plant_timing"]["plant"] == "kinematic"
 
 
-def test_mujoco_writes_the_same_claims_from_physics(kinematic, tmp_path):
+def test_mujoco_writes_the_same_claims_from_physics(kinematic, quick_studies):
     pytest.importorskip("mujoco")
-    assert xing.main(["--quick", "--plant", "mujoco", "--out", str(tmp_path)]) == 0
-    folder = tmp_path / "xing"
-    data = json.loads((folder / "xing.json").read_text())
+    folder = quick_studies.study("xing", "mujoco")
+    data = quick_studies.data("xing", "mujoco")
     assert data["plant"] == "mujoco"
     assert [c["id"] for c in data["claims"]] == [c["id"] for c in kinematic["claims"]]
     timing = data["plant_timing"]
