@@ -46,7 +46,7 @@ from .steering import (
     scale_into,
     steering_of_icr,
 )
-from .steering_code import steering_function
+from .steering_code import fast_path_allowed, steering_function
 from .task_sharing import (
     ArmCompensation,
     DexterousPosture,
@@ -68,6 +68,7 @@ __all__ = [
     "VARIANTS",
     "arm_compensation",
     "drive_rates",
+    "fast_path_allowed",
     "icr_of_twist",
     "scale_into",
     "share_task",

@@ -37,13 +37,13 @@ import casadi as ca
 import numpy as np
 
 import wbc
-from wbc.cbuild import compiled_c, compiler_available
+from wbc.cbuild import compiled_c
 from wbc.tasks import RpyPoseTask
 from wbc.tasks.rpy_pose import pose_error, rpy_jacobian
 
 from .closed_form import task_sharing_factor
 from .steering import MPO700_STEER_LIMITS, SteerableController, scale_into
-from .steering_code import steering_function
+from .steering_code import fast_path_allowed, steering_function
 from .task_sharing import ArmCompensation, DexterousPosture, share_task, sharing_factor
 
 __all__ = ["N_BASE", "PARAMETERS", "Q_DEX", "SorourController", "VARIANTS",
@@ -120,14 +120,7 @@ class SorourController:
 
     def _fast_path(self, fused, backend: str) -> bool:
         """Build and bind the generated call after the stack if ``fused`` allows it."""
-        reason = ("turned off (fused=False)" if fused is False else
-                  f"the backend is {backend!r}; the fast path replaces daqp's QPs"
-                  if backend != "daqp" else
-                  None if compiler_available() else "no C compiler found ($CC, default cc)")
-        if reason is not None:
-            if fused is True:
-                raise wbc.WbcError(f"fused=True, but the controller cannot take the fast path: "
-                                   f"{reason}")
+        if not fast_path_allowed(fused, backend, "the controller"):
             return False
         robot = self.robot
         self._q, self._target = np.zeros(int(robot.nq)), np.zeros(6)

@@ -68,14 +68,14 @@ from dataclasses import dataclass
 import numpy as np
 
 import wbc
-from wbc.cbuild import compiled_c, compiler_available
+from wbc.cbuild import compiled_c
 from wbc.checks import checked_number, checked_vector
 from wbc.errors import InvalidValueError
 from wbc.qp import Status
 from wbc.robots.steerable import SteerableBase
 from wbc.sim.actuation import Actuation
 
-from .steering_code import steering_function
+from .steering_code import fast_path_allowed, steering_function
 
 __all__ = ["MPO700_STEER_LIMITS", "SteerStep", "SteerableController", "SteerableDrive",
            "drive_rates", "icr_of_twist", "scale_into", "steering_of_icr"]
@@ -253,14 +253,7 @@ class SteerableController:
 
     def _fast_path(self, fused, backend: str) -> bool:
         """Bind the generated tick to this controller's buffers if ``fused`` allows it."""
-        reason = ("turned off (fused=False)" if fused is False else
-                  f"the backend is {backend!r}; the fast path replaces daqp's QP"
-                  if backend != "daqp" else
-                  None if compiler_available() else "no C compiler found ($CC, default cc)")
-        if reason is not None:
-            if fused is True:
-                raise wbc.WbcError(f"fused=True, but the steering controller cannot take the "
-                                   f"fast path: {reason}")
+        if not fast_path_allowed(fused, backend, "the steering controller"):
             return False
         n = self.base.n_wheels
         self._desired, self._next = np.zeros(3), np.zeros(2 * n + 6)

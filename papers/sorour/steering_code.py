@@ -58,7 +58,23 @@ from itertools import combinations
 
 import casadi as ca
 
-__all__ = ["steering_function"]
+from wbc.cbuild import compiler_available
+from wbc.errors import WbcError
+
+__all__ = ["fast_path_allowed", "steering_function"]
+
+
+def fast_path_allowed(fused, backend: str, subject: str) -> bool:
+    """Whether ``subject`` (a controller, named in the error) may take its fast path: not with
+    ``fused=False``, another backend than daqp (the generated code replaces daqp's QPs) or no C
+    compiler; ``fused=True`` where it cannot raises :class:`~wbc.errors.WbcError` saying why."""
+    reason = ("turned off (fused=False)" if fused is False else
+              f"the backend is {backend!r}; the fast path replaces daqp's QPs"
+              if backend != "daqp" else
+              None if compiler_available() else "no C compiler found ($CC, default cc)")
+    if reason is not None and fused is True:
+        raise WbcError(f"fused=True, but {subject} cannot take the fast path: {reason}")
+    return reason is None
 
 #: Relative violation up to which a candidate meets a row (the exact optimum meets its rows to
 #: rounding).
