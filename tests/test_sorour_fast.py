@@ -172,6 +172,24 @@ def test_steering_controller_fast_equals_ordinary():
     assert 0 < fast.fallback_steps < 0.1 * ticks
 
 
+@pytest.mark.parametrize("fused", [True, False])
+def test_what_a_tick_returns_is_never_rewritten_by_the_next(fused):
+    """The readings (steering, steer_rates, twist, icr) and a tick's SteerStep are the user's:
+    the next tick, which writes the controller's state in place, leaves them as they were."""
+    controller = SteerableController(mpo700(), fused=fused)
+    step = controller.step([0.3, 0.1, 0.2])
+    held = {name: getattr(controller, name) for name in ("steering", "steer_rates", "twist",
+                                                          "icr")}
+    kept = {name: value.copy() for name, value in held.items()}
+    returned = {name: getattr(step, name).copy() for name in ("twist", "steering", "icr")}
+    controller.step([-0.2, 0.3, -0.5])
+    assert not np.array_equal(controller.steering, kept["steering"])  # the state moved
+    for name, value in held.items():
+        np.testing.assert_array_equal(value, kept[name], err_msg=name)
+    for name, value in returned.items():
+        np.testing.assert_array_equal(getattr(step, name), value, err_msg=name)
+
+
 def test_an_assigned_steering_controller_is_read(robot):
     """The study assigns its own steering controller (swept constants): the generated call
     reads the new one's constants and state."""

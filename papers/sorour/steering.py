@@ -192,9 +192,10 @@ class SteerableController:
             compiler, ``True`` the same or an error, ``False`` the ordinary path only.
 
     Attributes:
-        state: ``[β (N) [rad], β̇ (N) [rad/s], ξ̂ (3), X (3)]``, the controller's state, which
-            :attr:`steering`, :attr:`steer_rates`, :attr:`twist` and :attr:`icr` are views of
-            (each tick writes it in place).
+        state: ``[β (N) [rad], β̇ (N) [rad/s], ξ̂ (3), X (3)]``, the controller's state (each
+            tick writes it in place, the generated tick reads it); :attr:`steering`,
+            :attr:`steer_rates`, :attr:`twist` and :attr:`icr` are copies of its parts, which
+            a later tick never rewrites.
         constants: ``[t_s, β̇max, β̈max, λ_ICR, K_p, d, r_w, v_max (3), hips (N × 2)]``, the
             generated tick's constants.
         fused: whether the fast path is on; fallback_steps: its ticks the ordinary path took.
@@ -268,25 +269,25 @@ class SteerableController:
 
     @property
     def steering(self) -> np.ndarray:
-        """Steering angles β [rad] (N,), a view of :attr:`state`."""
-        return self.state[:self.base.n_wheels]
+        """Steering angles β [rad] (N,), a copy of :attr:`state`'s part."""
+        return self.state[:self.base.n_wheels].copy()
 
     @property
     def steer_rates(self) -> np.ndarray:
-        """β̇ of the last tick [rad/s] (N,), a view of :attr:`state`."""
+        """β̇ of the last tick [rad/s] (N,), a copy of :attr:`state`'s part."""
         n = self.base.n_wheels
-        return self.state[n:2 * n]
+        return self.state[n:2 * n].copy()
 
     @property
     def twist(self) -> np.ndarray:
-        """The last feasible twist ``ξ̂`` [m/s, m/s, rad/s], a view of :attr:`state`."""
+        """The last feasible twist ``ξ̂`` [m/s, m/s, rad/s], a copy of :attr:`state`'s part."""
         n = self.base.n_wheels
-        return self.state[2 * n:2 * n + 3]
+        return self.state[2 * n:2 * n + 3].copy()
 
     @property
     def icr(self) -> np.ndarray:
-        """The homogeneous ICR ``X`` (3,), a view of :attr:`state`."""
-        return self.state[2 * self.base.n_wheels + 3:]
+        """The homogeneous ICR ``X`` (3,), a copy of :attr:`state`'s part."""
+        return self.state[2 * self.base.n_wheels + 3:].copy()
 
     def reset(self, steering=None) -> None:
         """Back to rest with the given steering angles [rad] (default zeros)."""
@@ -296,7 +297,7 @@ class SteerableController:
         self.state[:n] = angles
         self.state[n:2 * n + 3] = 0.0  # at rest
         # the ICR of the steering: forward translation for zeros
-        self.icr[...] = _icr_of_steering(self.hips, angles)
+        self.state[2 * n + 3:] = _icr_of_steering(self.hips, angles)
         self.acceleration_relaxed = 0
 
     # ------------------------------------------------------------------ the tick
@@ -312,9 +313,8 @@ class SteerableController:
                 relaxed = bool(self._info[2])
                 self.state[...] = self._next
                 self.acceleration_relaxed += relaxed
-                return SteerStep(self.twist.copy(), self.steering.copy(),
-                                 self.steer_rates.copy(), self._accelerations.copy(),
-                                 self._wheels.copy(), self.icr.copy(),
+                return SteerStep(self.twist, self.steering, self.steer_rates,
+                                 self._accelerations.copy(), self._wheels.copy(), self.icr,
                                  _ROUTES[int(self._info[1])], "solved", relaxed, qp_s)
             self.fallback_steps += 1
         return self.ordinary_step(desired_twist)
