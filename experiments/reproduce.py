@@ -45,7 +45,7 @@ from pathlib import Path
 from .campaigns.sweep import interval
 from .machine import describe_machine
 from .progress import report_progress
-from .studies.study import cell
+from .studies.study import cell, verdict_cell
 
 PAPERS = {"sorour": "Sorour, Cherubini, Fraisse — steerable wheeled mobile manipulation",
           "petric": "Petrič, Žlajpah — spatially modulated velocity fields",
@@ -254,7 +254,7 @@ def _paper_section(name: str, out: Path, steps: dict[str, Step]
     for c in claims:
         p = by_id_physics.get(c["id"])
         w = by_id_sweep.get(c["id"])
-        physics_cells = (f"{cell(p['ours'])} | {'yes' if p['holds'] else '**no**'}"
+        physics_cells = (f"{cell(p['ours'])} | {verdict_cell(p)}"
                          if p else "— | —")
         if w:
             seeds = f"{w['holds']} of {w['seeds']}" + (
@@ -263,7 +263,7 @@ def _paper_section(name: str, out: Path, steps: dict[str, Step]
         else:
             seeds, spread = "—", "—"
         lines.append(f"| {c['statement']} (`{c['id']}`) | {cell(c['paper'])} | "
-                     f"{cell(c['ours'])} | {'yes' if c['holds'] else '**no**'} | "
+                     f"{cell(c['ours'])} | {verdict_cell(c)} | "
                      f"{physics_cells} | {seeds} | {spread} | {c.get('note', '')} |")
     timing = data.get("timing") or {}
     if timing:

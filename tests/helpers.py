@@ -64,13 +64,18 @@ class Constant:
 
 def assert_study_contract(data: dict) -> None:
     """The JSON of ``wbc study NAME`` keeps the contract of the paper issues: its top-level
-    keys, and every claim with exactly ``id, statement, paper, ours, holds, note`` and a
-    boolean ``holds``."""
+    keys, and every claim with exactly ``id, statement, paper, ours, holds, note, missing,
+    verdict``, a boolean ``holds`` and a verdict that agrees with it (a claim the model cannot
+    reach names what it lacks)."""
     assert {"claims", "runs", "timing", "machine", "parameters", "summary"} <= set(data)
     assert data["claims"]
     for claim in data["claims"]:
-        assert set(claim) == {"id", "statement", "paper", "ours", "holds", "note"}, claim
+        assert set(claim) == {"id", "statement", "paper", "ours", "holds", "note", "missing",
+                              "verdict"}, claim
         assert isinstance(claim["holds"], bool), claim["id"]
+        expected = ("holds" if claim["holds"] else
+                    "not reproducible with this model" if claim["missing"] else "fails")
+        assert claim["verdict"] == expected, claim
 
 
 # Level 1 of wbc study petric's whole-body stack at the start pose: qpOASES' first

@@ -168,12 +168,12 @@ def test_the_fast_path_equals_the_ordinary_one_with_load_transfer(robot):
 # ------------------------------------------------------------------ the claims' criteria
 def test_anchors_hold_within_a_factor_and_else_are_classified():
     held = omni._anchor("four_wheel_error", "s", "p", {}, 0.6, "c")
-    assert held.holds and "NOT REPRODUCIBLE" not in held.note
+    assert held.holds and held.verdict == "holds" and not held.missing
     for ratio in (0.49, 2.01, -0.3):
         claim = omni._anchor("two_wheel_shortfall_reference", "s", "p", {}, ratio, "c")
         assert not claim.holds
-        assert claim.note.startswith("NOT REPRODUCIBLE WITH THIS MODEL")
-        assert omni.MISSING_MECHANISM["two_wheel_shortfall"] in claim.note
+        assert claim.verdict == "not reproducible with this model"
+        assert claim.missing == omni.MISSING_MECHANISM["two_wheel_shortfall"]
 
 
 def test_accuracy_needs_the_resolution_slip_the_round_off():
@@ -220,4 +220,4 @@ def test_the_accuracy_claims_are_the_runs_numbers(quick_studies):
     claim = claims["two_wheel_shortfall"]
     assert claim["ours"]["shortfall_cm"] == pytest.approx(100 * shortfall, abs=0.01)
     assert claim["holds"] == (0.5 <= shortfall / 0.023 <= 2.0)
-    assert claim["holds"] or claim["note"].startswith("NOT REPRODUCIBLE WITH THIS MODEL")
+    assert claim["holds"] or claim["verdict"] == "not reproducible with this model"

@@ -92,7 +92,7 @@ def run_case(context: dict, case: dict, deadline: float | None = None) -> dict:
     with tempfile.TemporaryDirectory(prefix="wbc_sweep_") as folder:
         result = module.run(context["backend"], Path(folder), context["quick"], options)
     claims = [{"id": c.id, "statement": c.statement, "paper": c.paper, "ours": c.ours,
-               "holds": bool(c.holds)} for c in result.claims]
+               "holds": bool(c.holds), "verdict": c.verdict} for c in result.claims]
     return {"claims": claims, "wall_s": time.perf_counter() - started}
 
 

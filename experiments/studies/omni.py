@@ -516,10 +516,8 @@ def _anchor(claim_id: str, statement: str, paper: str, ours: dict, ratio: float,
     held = 1.0 / ANCHOR_FACTOR <= ratio <= ANCHOR_FACTOR
     note = (f"{criterion}; holds within a factor {ANCHOR_FACTOR:g} of the paper's, same sign "
             f"(ours / paper = {ratio:.2f})")
-    if not held:
-        mechanism = MISSING_MECHANISM[claim_id.removesuffix("_reference")]
-        note = f"NOT REPRODUCIBLE WITH THIS MODEL — it lacks {mechanism}. {note}"
-    return Claim(claim_id, statement, paper, ours, held, note)
+    missing = "" if held else MISSING_MECHANISM[claim_id.removesuffix("_reference")]
+    return Claim(claim_id, statement, paper, ours, held, note, missing)
 
 
 def _position_claims(numbers: dict, method: str, suffix: str, reading: str) -> list[Claim]:

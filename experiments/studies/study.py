@@ -154,6 +154,10 @@ class Claim:
         ours: what our runs give (computed from them).
         holds: whether our runs reproduce the claim.
         note: how ``ours`` was computed, and why a claim does not hold.
+        missing: for a claim that does not hold because the model cannot reach it, the
+            mechanism the model lacks (e.g. "roller compliance"); empty otherwise.
+        verdict: derived, one of :data:`VERDICTS`: ``"holds"``, ``"fails"`` (the model could
+            show it and does not), ``"not reproducible with this model"`` (``missing`` names why).
     """
 
     id: str
@@ -162,9 +166,35 @@ class Claim:
     ours: object
     holds: bool
     note: str = ""
+    missing: str = ""
+    verdict: str = field(init=False)
 
     def __post_init__(self) -> None:
         self.holds = bool(self.holds)  # numpy booleans are not JSON
+        if self.holds and self.missing:
+            raise ValueError(f"claim {self.id!r} holds, so nothing is missing from the model "
+                             f"(got missing={self.missing!r})")
+        self.verdict = verdict(self.holds, self.missing)
+
+
+#: a claim's verdicts, in the order tables count them
+VERDICTS = ("holds", "fails", "not reproducible with this model")
+
+
+def verdict(holds: bool, missing: str = "") -> str:
+    """The verdict of a claim: it holds, it fails, or the model lacks ``missing`` to show it."""
+    return VERDICTS[0] if holds else VERDICTS[2] if missing else VERDICTS[1]
+
+
+def verdict_cell(claim: dict | Claim) -> str:
+    """A claim's verdict as a table cell (a JSON dict from an older run counts as held/failed)."""
+    data = asdict(claim) if isinstance(claim, Claim) else claim
+    kind = data.get("verdict") or verdict(bool(data["holds"]), data.get("missing", ""))
+    if kind == VERDICTS[0]:
+        return "yes"
+    if kind == VERDICTS[2]:
+        return f"**not reproducible** (lacks {data['missing']})"
+    return "**no**"
 
 
 @dataclass
@@ -217,13 +247,15 @@ class StudyResult:
             setting += f", seed {self.options.seed}"
         if self.options.params:
             setting += ", " + ", ".join(f"{k} = {v:g}" for k, v in self.options.params.items())
-        lines += [f"{held} of {len(self.claims)} claims reproduced ({setting}).", ""]
+        unreachable = sum(c.verdict == VERDICTS[2] for c in self.claims)
+        lines += [f"{held} of {len(self.claims)} claims reproduced ({setting})" + (
+            f"; {unreachable} not reproducible with this model" if unreachable else "") + ".", ""]
         if self.failures:
             lines += ["**Failures:**", *[f"- {f}" for f in self.failures], ""]
         lines += ["| claim | paper | ours | holds | note |", "|---|---|---|:---:|---|"]
         for c in self.claims:
             lines.append(f"| {c.statement} (`{c.id}`) | {cell(c.paper)} | {cell(c.ours)} | "
-                         f"{'yes' if c.holds else '**no**'} | {c.note} |")
+                         f"{verdict_cell(c)} | {c.note} |")
         if self.timing:
             lines += ["", "| backend | tick median [µs] | tick p95 [µs] | ticks | console lines |",
                       "|---|---:|---:|---:|---:|"]
