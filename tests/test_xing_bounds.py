@@ -100,10 +100,13 @@ def test_closed_loops_inside_the_bounds():
     both: the position term asks to stop at the limit within one period whatever the
     acceleration limit, and the braking points Q_low / Q_up switch to maximal deceleration
     only once the continuous braking distance is used up, one period too late."""
-    crossed, violated = xing.random_joint_loops("viable")
-    assert crossed.sum() == 0 and violated.sum() == 0
-    crossed, violated = xing.random_joint_loops("xing")
+    crossed, violated, overshoot = xing.random_joint_loops("viable")
+    assert crossed.sum() == 0 and violated.sum() == 0 and overshoot.max() <= 1e-9
+    crossed, violated, overshoot = xing.random_joint_loops("xing")
     assert 0.1 < crossed.mean() < 0.5 and 0.3 < violated.mean() < 0.8
+    # issue #29's figures: the violators overshoot by a median 7 mrad, at most 0.68 rad
+    assert np.median(overshoot[violated]) == pytest.approx(7.0e-3, abs=1e-4)
+    assert overshoot.max() == pytest.approx(0.677, abs=1e-3)
 
 
 @pytest.mark.parametrize("method", ["xing", "viable"])

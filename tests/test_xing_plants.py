@@ -34,18 +34,18 @@ def test_default_options_give_the_claims_computed_before(kinematic):
     claims = {c["id"]: c for c in kinematic["claims"]}
     assert kinematic["plant"] == "kinematic" and kinematic["seed"] is None
     assert claims["base_still_r010_amp_qp"]["ours"] == 0.0
-    assert claims["max_error_circle_r010"]["ours"] == {"traditional": 0.195,
-                                                        "amp_closed_form": 0.111,
-                                                        "amp_qp": 0.111}
+    # the cut of the maximum x–y error, 0.195 → 0.111 cm (issue #29: cuts, not cm)
+    assert claims["max_error_circle_r010"]["ours"] == {"amp_qp": 43.1, "amp_closed_form": 43.1}
     assert claims["max_error_axes_r025"]["ours"] == {"x": 81.5, "y": 1.8}
     assert claims["base_time_reduction_r025"]["ours"] == 80.5
     assert claims["base_activation_r025"]["ours"] == {"start_s": 6.44, "duration_s": 1.56}
     holds = {k for k, c in claims.items() if c["holds"]}
+    # the one ±10 % band of issue #29 (the quick run's short horizons miss most figures)
     assert holds == {"base_still_r010_amp_qp", "base_still_r010_amp_closed_form",
-                     "traditional_base_circle_r025", "max_error_circle_r010",
-                     "max_error_circle_r025", "max_error_axes_r025", "base_time_reduction_r025",
-                     "base_rms_r025", "no_limit_violation", "tick_time",
+                     "traditional_base_circle_r025", "base_time_reduction_r025",
+                     "no_limit_violation", "tick_time",
                      "tick_target", "qp_equals_closed_form"}  # tick_target: the fast path (#28)
+    assert claims["max_error_pose_rotation"]["verdict"] == "not reproducible with this model"
     assert kinematic["parameters"]["odometry"]["scale"] == [0.03, -0.03, 0.03]
     assert kinematic["plant_timing"]["plant"] == "kinematic"
 
@@ -91,7 +91,7 @@ def test_main_only_skips_figures_timing_and_side_campaigns(tmp_path):
     assert result.figures == [] and not list(tmp_path.glob("*.png"))
     assert result.timing == {} and result.replays == {}
     ids = {c.id for c in result.claims}
-    assert not ids & SIDE_CLAIMS and "base_still_r010_amp_qp" in ids and len(ids) == 14
+    assert not ids & SIDE_CLAIMS and "base_still_r010_amp_qp" in ids and len(ids) == 16
     assert result.parameters["bounds_loops"] is None and result.parameters["equivalence"] is None
 
 

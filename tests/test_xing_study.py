@@ -16,9 +16,10 @@ from wbc.solvers import available_backends  # noqa: E402
 
 CLAIMS = {"base_still_r010_amp_qp", "base_still_r010_amp_closed_form",
           "traditional_base_circle_r010", "traditional_base_circle_r025",
-          "max_error_circle_r010", "max_error_circle_r025",
+          "traditional_base_pose", "max_error_circle_r010", "max_error_circle_r025",
           "max_error_axes_r025", "base_time_reduction_r025", "base_activation_r025",
           "base_rms_r025", "base_time_reduction_pose", "max_error_pose",
+          "max_error_pose_rotation",
           "singularity_avoidance", "no_limit_violation", "xing_bounds_as_printed", "tick_time",
           "tick_target", "qp_equals_closed_form"}
 
