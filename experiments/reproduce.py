@@ -42,7 +42,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from .campaigns.sweep import interval
+from .campaigns.sweep import interval, seeds_held
 from .machine import describe_machine
 from .progress import report_progress
 from .studies.study import cell, verdict_cell
@@ -257,7 +257,7 @@ def _paper_section(name: str, out: Path, steps: dict[str, Step]
         physics_cells = (f"{cell(p['ours'])} | {verdict_cell(p)}"
                          if p else "— | —")
         if w:
-            seeds = f"{w['holds']} of {w['seeds']}" + (
+            seeds = seeds_held(w) + (
                 "" if w["holds_fraction"] >= 0.95 else " (**< 95 %**)")
             spread = interval(w)
         else:

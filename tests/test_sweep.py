@@ -43,6 +43,17 @@ def test_aggregate_counts_holds_and_bootstraps_the_median():
     assert sweep.aggregate(seeds)[0]["ours_ci95"] == a["ours_ci95"]  # a fixed generator
     assert set(b["ours_median"]) == {"x"} and b["holds_fraction"] == 1.0  # numbers only
     assert c["seeds"] == 39 and c["holds"] == 0 and "ours_median" not in c
+    assert a["not_reproducible"] == b["not_reproducible"] == c["not_reproducible"] == 0
+
+
+def test_aggregate_counts_the_seeds_the_model_could_not_reproduce():
+    verdicts = ["holds", "not reproducible with this model", "fails",
+                "not reproducible with this model"]
+    seeds = [[{**claim("a", 1.0, v == "holds"), "verdict": v}] for v in verdicts]
+    (a,) = sweep.aggregate(seeds)
+    assert (a["holds"], a["not_reproducible"], a["seeds"]) == (1, 2, 4)
+    assert sweep.seeds_held(a) == "1 of 4 (2 not reproducible with this model)"
+    assert sweep.seeds_held({**a, "not_reproducible": 0}) == "1 of 4"
 
 
 def test_plan_is_the_product_of_the_grid_times_the_seeds():

@@ -18,7 +18,8 @@ Written to ``DIR/sweep_NAME/``:
   ``"plant"``, ``"quick"``, ``"grid"`` (``KEY -> values``), ``"claims"`` — one entry per claim
   ``"id"`` of the first setting (the study's own when no ``--param``), the study JSON's shape:
   ``"id"``, ``"statement"``, ``"paper"``, ``"holds_fraction"`` (0–1), ``"holds"`` (seeds it
-  held in), ``"seeds"`` (seeds that computed it), and for a numeric ``ours`` (a number, or a
+  held in), ``"seeds"`` (seeds that computed it), ``"not_reproducible"`` (seeds whose verdict
+  was "not reproducible with this model"), and for a numeric ``ours`` (a number, or a
   dict of numbers: then per key) ``"ours_median"`` and ``"ours_ci95"`` (a percentile
   bootstrap interval of the median: :data:`BOOTSTRAP` resamples, fixed generator) —,
   ``"settings"`` (per setting: ``"params"`` and its ``"claims"``), ``"defects"`` (cases that
@@ -49,10 +50,11 @@ from wbc.errors import UnknownNameError
 
 from ..arguments import add_cluster_arguments, cluster_options
 from ..machine import describe_machine
-from ..studies.study import PLANTS, StudyOptions, cell, parse_params
+from ..studies.study import PLANTS, VERDICTS, StudyOptions, cell, parse_params
 from . import cluster
 
-__all__ = ["BOOTSTRAP", "ROBUST", "STUDIES", "aggregate", "main", "plan", "run_case", "sweep"]
+__all__ = ["BOOTSTRAP", "ROBUST", "STUDIES", "aggregate", "main", "plan", "run_case",
+           "seeds_held", "sweep"]
 
 #: the studies a sweep can run
 STUDIES = ("sorour", "petric", "omni", "xing")
@@ -113,21 +115,24 @@ def _median_ci(values: list[float]) -> tuple[float, list[float]]:
 
 def aggregate(results: list[list[dict]]) -> list[dict]:
     """Per claim id (in the order they first appear), over the seeds' claim lists: the
-    statement, the paper's value, ``holds_fraction``, ``holds``, ``seeds`` and, where ``ours`` is
-    numeric (or a dict of numbers), ``ours_median`` and ``ours_ci95``."""
+    statement, the paper's value, ``holds_fraction``, ``holds``, ``seeds``,
+    ``not_reproducible`` (seeds whose verdict was "not reproducible with this model") and,
+    where ``ours`` is numeric (or a dict of numbers), ``ours_median`` and ``ours_ci95``."""
     order: dict[str, dict] = {}
     for claims in results:
         for c in claims:
             entry = order.setdefault(c["id"], {"id": c["id"], "statement": c["statement"],
-                                               "paper": c["paper"], "values": [], "held": 0})
+                                               "paper": c["paper"], "values": [], "held": 0,
+                                               "unreachable": 0})
             entry["values"].append(c["ours"])
             entry["held"] += bool(c["holds"])
+            entry["unreachable"] += c.get("verdict") == VERDICTS[2]
     out = []
     for entry in order.values():
         values = entry.pop("values")
-        held = entry.pop("held")
+        held, unreachable = entry.pop("held"), entry.pop("unreachable")
         claim = {**entry, "holds_fraction": held / len(values), "holds": held,
-                 "seeds": len(values)}
+                 "seeds": len(values), "not_reproducible": unreachable}
         if all(_numeric(v) for v in values):
             claim["ours_median"], claim["ours_ci95"] = _median_ci(values)
         elif all(isinstance(v, dict) for v in values):
@@ -209,13 +214,21 @@ def markdown(result: dict) -> str:
                   "|---|---|---:|---|:---:|"]
         for c in setting["claims"]:
             lines.append(f"| {c['statement']} (`{c['id']}`) | {cell(c['paper'])} | "
-                         f"{c['holds']} of {c['seeds']} | {interval(c)} | "
+                         f"{seeds_held(c)} | {interval(c)} | "
                          f"{'yes' if c['holds_fraction'] >= ROBUST else '**no**'} |")
         lines.append("")
     for d in result["defects"]:
         lines.append(f"- case `{d['case']}`: {d['defect']} — {d['message']}; rerun: "
                      f"`{d['reproduce']}`")
     return "\n".join(lines) + "\n"
+
+
+def seeds_held(claim: dict) -> str:
+    """``k of N`` seeds a sweep claim held in, and how many of the others the model could not
+    reproduce (the study's verdict)."""
+    unreachable = claim.get("not_reproducible", 0)
+    return f"{claim['holds']} of {claim['seeds']}" + (
+        f" ({unreachable} not reproducible with this model)" if unreachable else "")
 
 
 def interval(claim: dict) -> str:
