@@ -7,6 +7,7 @@ buffers), and a valid tick makes no Python check at all."""
 from __future__ import annotations
 
 import math
+import weakref
 
 import casadi as ca
 import numpy as np
@@ -16,7 +17,9 @@ import wbc
 from wbc import controller as controller_module
 from wbc.cbuild import compiler_available
 from wbc.checks import ROTATION_TOL, check_pose, checked_array
+from wbc.fused import stage_extension
 from wbc.robots.fixed_base import load_panda
+from wbc.solution import Timings
 from wbc.tasks import ConfigurationLimit, FrameTask, PostureTask, VelocityLimit
 
 pytestmark = pytest.mark.skipif(not compiler_available(), reason="needs a C compiler")
@@ -43,10 +46,16 @@ def panda(robot, **options) -> wbc.Controller:
 
 
 @pytest.fixture(scope="module")
-def stage():
-    function = controller_module._c_stage("cc")
-    assert function is not controller_module._python_path  # built and loaded here
-    return function
+def extension():
+    module = stage_extension("cc")
+    assert module is not None  # built and loaded here
+    assert controller_module._c_stage("cc") is module.tick
+    return module
+
+
+@pytest.fixture(scope="module")
+def stage(extension):
+    return extension.stage
 
 
 def _python_accepts(value, shape, allow_inf, pose) -> np.ndarray | None:
@@ -190,7 +199,7 @@ def test_a_keyword_the_stage_has_no_spec_for_is_python_s(stage):
 def ticking(robot):
     """A fused Panda controller after a few ticks, and the pose it tracks."""
     controller = panda(robot)
-    assert controller.fused and controller._hot.stage is not controller_module._python_path
+    assert controller.fused and controller._hot.tick is not controller_module._python_path
     q = Q0 + 0.1
     target = robot.frame_pose(q, "ee").copy()
     target[:3, 3] += 0.05
@@ -249,7 +258,8 @@ def test_a_refused_step_writes_nothing(ticking, q_name, references, error, messa
     workspace = controller.workspace
     controller.step(q, ee=target)
     live = workspace.fused_solution
-    p, x, solve_time = workspace.p.tobytes(), live.x.tobytes(), live.timings.solve
+    p, x, times = workspace.p.tobytes(), live.x.tobytes(), live.timings
+    timed = (times.model, times.solve)
     solution, command = controller._last_solution, controller.last_command
     assert solution is live  # not copied yet: its buffers are what a refused tick must spare
     unset, fallbacks = set(workspace._unset), workspace.fallback_solves
@@ -262,7 +272,7 @@ def test_a_refused_step_writes_nothing(ticking, q_name, references, error, messa
         with pytest.raises(error, match=message):
             controller.step(_values(q_name, q, target), **call)
         assert workspace.p.tobytes() == p and live.x.tobytes() == x
-        assert live.timings.solve == solve_time and workspace.fallback_solves == fallbacks
+        assert (times.model, times.solve) == timed and workspace.fallback_solves == fallbacks
         assert controller._last_solution is solution and controller.last_command is command
         assert workspace._unset == unset
     np.testing.assert_array_equal(controller.step(q), command)  # the old references hold
@@ -290,9 +300,9 @@ def test_the_stage_and_python_give_the_same_bits(robot):
     then, random kicks — on the C stage and on Python's path: the same commands and
     parameters, bit for bit. A controller that compiles no C (``fused=False, jit=False``) uses
     Python's path."""
-    assert panda(robot, fused=False, jit=False)._hot.stage is controller_module._python_path
+    assert panda(robot, fused=False, jit=False)._hot.tick is controller_module._python_path
     fast, slow = panda(robot), panda(robot)
-    slow._hot = slow._hot._replace(stage=controller_module._python_path)
+    slow._hot = slow._hot._replace(tick=controller_module._python_path)
     rng = np.random.default_rng(3)
     goals = []
     for _ in range(3):
@@ -315,3 +325,116 @@ def test_the_stage_and_python_give_the_same_bits(robot):
 def test_without_a_compiler_the_stage_is_python_s(monkeypatch):
     monkeypatch.setenv("CC", "no-such-compiler-wbc")
     assert controller_module._c_stage("no-such-compiler-wbc") is controller_module._python_path
+
+
+def _states(robot, rng, count: int):
+    """``count`` random ``(q, references)`` of the Panda problem: a pose near the hand every
+    tick but every third, a new posture now and then, and one state in seven with joint 4
+    beyond its upper limit (the position and velocity limits cross: the fused call fails,
+    the ordinary path reports the infeasibility)."""
+    limits = robot.limits
+    for k in range(count):
+        q = rng.uniform(limits.q_lower, limits.q_upper)
+        if k % 7 == 3:
+            q[3] = limits.q_upper[3] + 0.5
+        references = {}
+        if k % 3 != 1:
+            goal = _pose(rng)
+            goal[:3, 3] = robot.frame_pose(q, "ee")[:3, 3] + rng.uniform(-0.1, 0.1, 3)
+            references["ee"] = goal
+        if k % 11 == 5:
+            references["posture"] = rng.uniform(limits.q_lower, limits.q_upper)
+        yield q, references
+
+
+def test_the_c_tick_gives_the_python_tick_s_outputs_bit_for_bit(robot):
+    """On 200 random states (failed fused calls among them): the tick made in C (stage, call,
+    copy) against the same controller whose fused call is made by the workspace's Python
+    closure (``call=None``: the tick before the C call existed): the same commands, solutions,
+    statuses, messages, conflicts and fallback counts, bit for bit; every tick timed."""
+    fast, slow = panda(robot), panda(robot)
+    assert fast._hot.call is fast.workspace.c_call is not None
+    slow._hot = slow._hot._replace(call=None)
+    answered_in_c = 0
+    for k, (q, references) in enumerate(_states(robot, np.random.default_rng(5), 200)):
+        before = fast.workspace.fallback_solves
+        v_fast, v_slow = fast.step(q, **references), slow.step(q, **references)
+        answered_in_c += fast.workspace.fallback_solves == before and k > 0 and (
+            fast._last_solution is fast.workspace.fused_solution)
+        assert v_fast.tobytes() == v_slow.tobytes(), k
+        a, b = fast.last_solution, slow.last_solution
+        assert a.x.tobytes() == b.x.tobytes() and a.status is b.status, k
+        assert (a.message, a.conflict, a.fallback) == (b.message, b.conflict, b.fallback), k
+        assert a.timings.model > 0 and a.timings.solve > 0, k
+        assert fast.workspace.p.tobytes() == slow.workspace.p.tobytes(), k
+    assert fast.workspace.fallback_solves == slow.workspace.fallback_solves > 20
+    assert fast.workspace.skipped_solves == slow.workspace.skipped_solves
+    assert answered_in_c > 100  # most ticks: no Python between the stage and the command
+
+
+def test_what_a_tick_returns_survives_the_next_tick(robot):
+    """The command (a new array, or ``out``), ``last_solution`` and its timings, read after a
+    tick the C call answered, keep their values through the next ticks; the fused solution's
+    timings are the tick's clock readings, copied into a plain :class:`~wbc.solution.Timings`
+    by the snapshot."""
+    controller = panda(robot)
+    rng = np.random.default_rng(9)
+    states = list(_states(robot, rng, 40))
+    controller.step(states[0][0], **states[0][1])  # arms the C call
+    kept = []
+    for q, references in states:
+        command = controller.step(q, **references)
+        assert controller.last_command is command
+        solution = controller.last_solution
+        assert type(solution.timings) is Timings
+        kept.append((command, command.copy(), solution, solution.x.copy(),
+                     solution.timings.model, solution.timings.solve, solution.status))
+    assert len({id(entry[0]) for entry in kept}) == len(kept)  # a new array every tick
+    for command, values, solution, x, model, solve, status in kept:
+        assert command.tobytes() == values.tobytes() and solution.x.tobytes() == x.tobytes()
+        assert (solution.timings.model, solution.timings.solve) == (model, solve)
+        assert solution.status is status and model > 0 and solve > 0
+    out = np.full(2 * robot.nv, np.nan)[::2]  # a strided out: written in place
+    q, references = states[0]
+    expected = controller.step(q, **references)
+    assert controller.step(q, out=out, **references) is out and controller.last_command is out
+    assert out.tobytes() == expected.tobytes()
+
+
+@pytest.mark.parametrize("out", [np.zeros(6), np.zeros(7, np.float32), np.zeros((7, 1)),
+                                 [0.0] * 7], ids=["short", "float32", "column", "list"])
+def test_a_bad_out_is_refused_before_anything_is_written(ticking, out):
+    controller, q, target = ticking
+    workspace = controller.workspace
+    controller.step(q, ee=target)
+    p, times = workspace.p.tobytes(), workspace.times[2:].tobytes()
+    command = controller.last_command
+    with pytest.raises(wbc.ShapeError, match="out must be a float numpy array"):
+        controller.step(q + 0.01, out=out, ee=_spoiled(target, 0, 3, target[0, 3] + 0.01))
+    assert workspace.p.tobytes() == p and workspace.times[2:].tobytes() == times
+    assert controller.last_command is command
+
+
+def test_a_command_someone_can_still_see_is_never_reused(robot):
+    """The C tick reuses a command array only when nothing else references it: a command seen
+    through a view, a weak reference, or reshaped in place by its holder keeps its values
+    (and shape) through the next ticks, while each tick still returns its own command."""
+    controller = panda(robot)
+    states = list(_states(robot, np.random.default_rng(13), 30))
+    controller.step(states[0][0], **states[0][1])
+    watched = []
+    for k, (q, references) in enumerate(states):
+        command = controller.step(q, **references)
+        expected = command.copy()
+        if k % 3 == 0:
+            watched.append((command[:4], expected[:4]))  # a view keeps its base
+        elif k % 3 == 1:
+            watched.append((weakref.ref(command), expected))
+        else:
+            command.shape = (1, robot.nv)  # in place: no longer what a tick returns
+            watched.append((command, expected.reshape(1, -1)))
+        del command
+        for seen, values in watched:
+            seen = seen() if isinstance(seen, weakref.ref) else seen
+            assert seen is None or seen.tobytes() == values.tobytes(), k
+            assert seen is None or seen.shape == values.shape, k

@@ -64,23 +64,35 @@ def compiled_c(function: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS,
     see :func:`wbc.passes.daqp_link_arguments`); they are part of the cache key. ``patch``: a
     correction applied to the generated source before it is hashed and compiled. Raises
     ``RuntimeError`` if the compiler (or ``patch``) fails."""
+    library = compiled_library(function, flags, link, patch)
+    return ca.external(function.name(), str(library))
+
+
+def compiled_library(function: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS,
+                     link: tuple[str, ...] = (),
+                     patch: Callable[[str], str] | None = None) -> Path:
+    """The path of the shared library :func:`compiled_c` loads (same arguments): CasADi's
+    generated C of ``function``, which exports the C function ``function.name()`` and its
+    ``<name>_work``, ``<name>_checkout``, ... (what :data:`wbc.checks.STAGE_SOURCE`'s
+    ``fused_call`` calls directly)."""
     generator = ca.CodeGenerator(f"{function.name()}.c", {"with_header": False})
     generator.add(function)
     source = generator.dump()
     if patch is not None:
         source = patch(source)
-    return ca.external(function.name(), str(cached_library(function.name(), source, flags, link)))
+    return cached_library(function.name(), source, flags, link)
 
 
-def compiled_extension(name: str, source: str, flags: tuple[str, ...] = DEFAULT_FLAGS
-                       ) -> ModuleType:
+def compiled_extension(name: str, source: str, flags: tuple[str, ...] = DEFAULT_FLAGS,
+                       link: tuple[str, ...] = ()) -> ModuleType:
     """The Python extension module ``name`` (its C ``source`` defines ``PyInit_<name>``),
     built against this interpreter's headers into the cache if needed, and loaded. ``flags``
-    (e.g. ``-I`` folders) are part of the cache key, and so are the interpreter's version and
-    ABI. Raises ``RuntimeError`` if the compiler fails (no compiler, no Python headers)."""
+    (e.g. ``-I`` folders) and ``link`` (arguments after the source, e.g. ``-ldl``) are part of
+    the cache key, and so are the interpreter's version and ABI. Raises ``RuntimeError`` if the
+    compiler fails (no compiler, no Python headers)."""
     include = sysconfig.get_paths()["include"]
     stamp = f"/* CPython {sys.version.split()[0]} {sysconfig.get_config_var('EXT_SUFFIX')} */\n"
-    path = cached_library(name, stamp + source, (*flags, f"-I{include}"))
+    path = cached_library(name, stamp + source, (*flags, f"-I{include}"), link)
     loader = importlib.machinery.ExtensionFileLoader(name, str(path))
     spec = importlib.util.spec_from_file_location(name, path, loader=loader)
     if spec is None:
@@ -132,4 +144,4 @@ def compiler_available() -> bool:
 
 
 __all__ = ["DEFAULT_FLAGS", "cache_dir", "cached_library", "compiled_c", "compiled_extension",
-           "compiler_available"]
+           "compiled_library", "compiler_available"]

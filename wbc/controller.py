@@ -61,12 +61,18 @@ refused call writes nothing either way.
 On the fused path (the default for a stack on daqp without task-scaling levels, with a C
 compiler, see :mod:`wbc.fused`), the solve is one call of a generated C function holding the
 compiled kinematics, the assembly and the daqp solves of every level (``timings.solve``).
-:meth:`Controller.step` makes it through the callable the workspace hands out once
-(:meth:`wbc.fused.FusedWorkspace.solver`: the fused solve without a method call around it); a
-tick it does not solve is solved again on the ordinary path, so statuses, partial solutions and
-fallbacks read the same. A solved tick's solution is then the workspace's reused one
-(:attr:`~wbc.fused.FusedWorkspace.fused_solution`), copied when ``last_solution`` is first
-read.
+When no numeric model quantity is filled between the stage and the solve and the last tick
+was fused, the same C call that staged the inputs makes it (through the workspace's
+:attr:`~wbc.fused.FusedWorkspace.c_call`), reads the clock around it and copies the command
+into an array no one else holds (or ``out``): a tick it answers runs no Python after the
+stage (Panda pose + posture, ``wbc placo``: ≈ 1.26× the bare generated call in a dedicated
+loop, against 1.64× with the solve in Python). Every other tick makes the call through the
+callable the workspace hands out once (:meth:`wbc.fused.FusedWorkspace.solver`), which also
+keeps the back-off and arms the C call again. A tick the fused call does not solve is solved
+again on the ordinary path, so statuses, partial solutions and fallbacks read the same. A
+solved tick's solution is the workspace's reused one
+(:attr:`~wbc.fused.FusedWorkspace.fused_solution`, its ``timings`` read from the tick's clock
+buffer), copied when ``last_solution`` is first read.
 
 A failed tick costs about what a solved one does: the search for the conflicting constraints
 (:mod:`wbc.infeasibility`) runs when ``solution.conflict`` or ``solution.message`` is read.
@@ -84,8 +90,8 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
-from .cbuild import DEFAULT_FLAGS, compiled_extension, compiler_available
-from .checks import STAGE_SOURCE, all_finite, as_float_array, check_pose, checked_array
+from .cbuild import compiler_available
+from .checks import all_finite, as_float_array, check_pose, checked_array
 from .checks import check_frame as check_frame  # re-exported: wbc.controller.check_frame
 from .errors import (
     InfeasibleError,
@@ -96,7 +102,7 @@ from .errors import (
     UnknownNameError,
     WbcError,
 )
-from .fused import FusedWorkspace
+from .fused import FusedWorkspace, build_fused, stage_extension
 from .infeasibility import fixed_conflict
 from .passes import compiled_kinematics, jit_compiled, why_not_fused
 from .qp import Status
@@ -118,35 +124,31 @@ DECELERATION = 0.5  # "decelerate": the previous command's share kept per failed
 class _HotPath(NamedTuple):
     """What :meth:`Controller.step` reads on every tick, in one attribute (see there)."""
 
-    stage: Callable[..., bool]  # checks and writes q, v, references: C's or _python_path
+    tick: Callable[..., object]  # C's tick (wbc.checks.STAGE_SOURCE) or _python_path
     p: np.ndarray  # the workspace's parameter vector
-    layout: tuple[int, int, int, int]  # (q_at, nq, v_at, nv): "q", "v" in p (-1: absent)
+    layout: tuple[int, int, int, int, int]  # (q_at, nq, v_at, nv, n): "q", "v" in p (-1: absent)
     specs: dict[str, tuple]  # reference keyword -> (at, rows, cols, allow_inf, pose)
+    times: np.ndarray  # (started, called, model, solve): the tick's clock readings [s]
+    call: object  # FusedWorkspace.c_call when nothing runs between stage and solve, else None
     needs_v: bool
     fillers: tuple  # (fill, view) per numeric model quantity
-    solve: Callable[[float], Solution]  # FusedWorkspace.solver(), or _solve_ordinary
+    solve: Callable[..., Solution]  # FusedWorkspace.solver(), or _solve_ordinary
     fused_solution: Solution | None  # what solve returns when the fused call answered
 
 
-def _python_path(p, q, v, layout, references, specs) -> bool:
-    """The stage when the C one cannot be built (or ``jit=False``): every call takes Python's
-    path (:meth:`Controller.step`)."""
-    return False
+def _python_path(p, q, v, layout, references, specs, out, times, call) -> None:
+    """The tick when the C one cannot be built (or ``jit=False``): it reads the clock, and
+    every call takes Python's path (:meth:`Controller.step`)."""
+    times[0] = _clock()
 
 
 @cache
-def _c_stage(compiler: str) -> Callable[..., bool]:
-    """The ``stage`` function of :data:`wbc.checks.STAGE_SOURCE` built by ``compiler`` (once per
-    machine, ≈ 0.3 s, then cached, see :mod:`wbc.cbuild`; loaded once per process), or
-    :func:`_python_path` if it cannot be built or loaded here (no compiler, no Python
-    headers)."""
-    source = f"/* numpy {np.__version__} */\n{STAGE_SOURCE}"
-    try:
-        module = compiled_extension("wbc_stage", source,
-                                    (*DEFAULT_FLAGS, f"-I{np.get_include()}"))
-    except (RuntimeError, ImportError):
-        return _python_path
-    return module.stage
+def _c_stage(compiler: str) -> Callable[..., object]:
+    """The ``tick`` function of :data:`wbc.checks.STAGE_SOURCE` built by ``compiler``
+    (:func:`wbc.fused.stage_extension`), or :func:`_python_path` if it cannot be built or
+    loaded here (no compiler, no Python headers)."""
+    module = stage_extension(compiler)
+    return _python_path if module is None else module.tick
 
 
 class Controller:
@@ -264,9 +266,13 @@ class Controller:
             raise InfeasibleError(f"wbc.Controller: {label}: {details}, whatever the state "
                                   "(values known before the first tick: constants and "
                                   "parameter defaults)")
-        self.workspace = self._fused_workspace(fused, backend, profile, warm_start, options)
-        self.fused = self.workspace is not None
-        if not self.fused:
+        fused_workspace = self.build_fused_workspace(fused, backend, profile, warm_start,
+                                                     options)
+        self.fused = fused_workspace is not None
+        self.workspace: Workspace
+        if fused_workspace is not None:
+            self.workspace = fused_workspace
+        else:
             if jit is True or (jit == "auto" and compiler_available()):
                 self.compiled = jit_compiled(self.compiled)
             self.workspace = Workspace(self.compiled, backend, profile, warm_start, **options)
@@ -291,43 +297,41 @@ class Controller:
             solve, self._live_solution = workspace.solver(), workspace.fused_solution
         else:
             solve, self._live_solution = self._solve_ordinary, None
-        # the C stage when this controller compiles C anyway (fused, or jit), else Python's
+        # the C tick when this controller compiles C anyway (fused, or jit), else Python's; it
+        # makes the fused call itself when no numeric model quantity is filled in between
         uses_c = self.fused or jit is True or (jit == "auto" and compiler_available())
-        stage = _c_stage(os.environ.get("CC", "cc")) if uses_c else _python_path
+        tick = _c_stage(os.environ.get("CC", "cc")) if uses_c else _python_path
         parameters = self.compiled.parameters
         layout = (parameters["q"][0] if self._q is not None else -1, self.nq,
-                  parameters["v"][0] if self._v is not None else -1, self.nv)
-        self._hot = _HotPath(stage, self.workspace.p, layout, self._specs, self._needs_v,
-                             tuple(self._fillers), solve, self._live_solution)
+                  parameters["v"][0] if self._v is not None else -1, self.nv, self.compiled.n)
+        call = (workspace.c_call if isinstance(workspace, FusedWorkspace) and not self._fillers
+                else None)
+        times = workspace.times if isinstance(workspace, FusedWorkspace) else np.zeros(4)
+        self._hot = _HotPath(tick, self.workspace.p, layout, self._specs, times, call,
+                             self._needs_v, tuple(self._fillers), solve, self._live_solution)
         stack._controlled = True  # edits after this would not reach the compiled snapshot
 
-    def _fused_workspace(self, fused, backend, profile, warm_start, options):
-        """A :class:`~wbc.fused.FusedWorkspace` if the fused path applies (see ``fused`` in the
-        class docstring), else ``None`` with ``self.fused_reason`` saying why."""
-        if fused is False:
-            self.fused_reason = "turned off (fused=False)"
-            return None
-        reason = (why_not_fused(self.compiled, options) if backend == "daqp" else
-                  f"the backend is {backend!r}; the fused tick solves with daqp")
-        if reason is None and not compiler_available():
-            reason = "no C compiler found ($CC, default cc)"
-            warnings.warn(f"wbc.Controller: {reason}; the tick runs on today's path (Python "
-                          "around a persistent daqp backend), several times slower",
-                          RuntimeWarning, stacklevel=3)
-        if reason is None:
-            try:
-                workspace = FusedWorkspace(self.compiled, profile, warm_start, **options)
-            except RuntimeError as err:  # the compiler failed
-                reason = f"C compilation failed: {err}"
-                warnings.warn(f"wbc.Controller: {reason}; the tick runs on today's path",
-                              RuntimeWarning, stacklevel=3)
-            else:
-                self.fused_reason = None
-                return workspace
-        if fused is True:
-            raise WbcError(f"fused=True, but the tick cannot be fused: {reason}")
-        self.fused_reason = reason
-        return None
+    def build_fused_workspace(self, fused: bool | str, backend: BackendSpec, profile: str,
+                              warm_start: bool, options: dict) -> FusedWorkspace | None:
+        """The workspace of the fused path if it applies (see ``fused`` in the class
+        docstring), else ``None``; sets ``self.fused_reason`` (``None``, or why not). Called once
+        by ``__init__`` (``self.compiled`` is set). The hook a subclass with a generated tick of
+        its own overrides (:class:`wbc.papers.xing.fast.AMPController`), deciding through
+        :func:`wbc.fused.build_fused` as this one does."""
+        def why_not() -> str | None:
+            return (why_not_fused(self.compiled, options) if backend == "daqp" else
+                    f"the backend is {backend!r}; the fused tick solves with daqp")
+
+        def slower(why: str) -> None:  # (stacklevel: the caller of Controller(...))
+            warnings.warn(f"wbc.Controller: {why}; the tick runs on today's path"
+                          + (" (Python around a persistent daqp backend), several times slower"
+                             if why.startswith("no C compiler") else ""),
+                          RuntimeWarning, stacklevel=5)
+
+        workspace, self.fused_reason = build_fused(
+            fused, why_not, lambda: FusedWorkspace(self.compiled, profile, warm_start, **options),
+            "the tick cannot be fused", slower)
+        return workspace
 
     # ------------------------------------------------------------------ planning
     def _plan(self) -> None:
@@ -486,17 +490,27 @@ class Controller:
             array that no later tick writes (``out`` itself when given), on every path and
             backend.
         """
-        # q, v and the references are checked and written by one call in C (the stage,
-        # wbc.checks.STAGE_SOURCE), which leaves every call it does not accept — a refusal, a
-        # list, a keyword seen for the first time — to the same checks in Python
-        # (_check_and_write), before anything is written either way. The hot path reads module
-        # globals and one tuple of what _plan and __init__ prepared (an attribute read each
-        # would cost ≈ 1 % of a Panda tick, more once the instance __dict__ is materialised).
-        t0 = _clock()
-        stage, p, layout, specs, needs_v, fillers, solve, fused_solution = self._hot
-        if ((out is not None and (type(out) is not _ndarray or out.shape != self._x_shape
-                                  or out.dtype is not _FLOAT))
-                or not stage(p, q, v, layout, references, specs)):
+        # One call in C (the tick, wbc.checks.STAGE_SOURCE) checks and writes q, v and the
+        # references and, on the fused path when the last tick was fused, makes the fused call
+        # and copies the command: then nothing else runs here. It leaves every call it does not
+        # accept — a refusal, a list, a keyword seen for the first time, a bad out — to the
+        # same checks in Python (_check_and_write), before anything is written either way, and
+        # every other tick to _finish. The hot path reads one tuple of what _plan and __init__
+        # prepared (an attribute read each would cost ≈ 1 % of a Panda tick).
+        tick, p, layout, specs, times, call, _, _, _, fused_solution = self._hot
+        answer = tick(p, q, v, layout, references, specs, out, times, call)
+        if answer.__class__ is _ndarray:  # the fused call answered: its reused solution
+            self._last_solution = fused_solution
+            self.last_command = answer
+            return answer  # type: ignore[return-value]
+        return self._finish(q, v, out, references, answer)  # type: ignore[arg-type]
+
+    def _finish(self, q, v, out, references: dict, staged: bool | None) -> np.ndarray:
+        """:meth:`step` after the C tick (or Python's, :func:`_python_path`) returned
+        ``staged``: ``None`` — nothing written, the inputs take Python's checks; ``True`` — the
+        inputs are written; ``False`` — written, and the fused call made and not answered."""
+        _, _, _, _, times, _, needs_v, fillers, solve, fused_solution = self._hot
+        if staged is None:
             q, v = self._check_and_write(q, v, out, references)
         if needs_v and v is None:
             v = self._zero_v
@@ -506,7 +520,7 @@ class Controller:
             self.robot.update(q, v if self._needs_drift else None)
             for fill, view in fillers:
                 fill(view)
-        solution = solve(t0)  # its timings.model: from t0 to the solve
+        solution = solve(times.item(0), staged is False)  # timings.model: from the tick's start
         if solution is fused_solution:  # a fused call answered: the workspace's reused buffers
             self._last_solution = solution
             if out is None:
@@ -541,10 +555,10 @@ class Controller:
             self._v[...] = v
         return q, v
 
-    def _solve_ordinary(self, started: float) -> Solution:
+    def _solve_ordinary(self, started: float, tried: bool = False) -> Solution:
         """``workspace.solve()`` with ``timings.model`` the time from ``started`` to it (the
         callable :meth:`step` calls when the tick is not fused; see
-        :meth:`wbc.fused.FusedWorkspace.solver`)."""
+        :meth:`wbc.fused.FusedWorkspace.solver`; ``tried`` is always ``False`` here)."""
         t1 = _clock()
         solution = self.workspace.solve()
         solution.timings.model = t1 - started

@@ -11,7 +11,11 @@ daqp headers and static library that ship inside the casadi wheel (``casadi/incl
 through :meth:`casadi.Function.buffer` on the workspace's own parameter vector: one C call per
 tick, no conversion, no allocation in Python. :class:`FusedWorkspace` is that call with its
 bookkeeping (:meth:`FusedWorkspace.solve`, or the callable :meth:`FusedWorkspace.solver` hands
-a caller that solves every tick, as :meth:`wbc.Controller.step` does).
+a caller that solves every tick, as :meth:`wbc.Controller.step` does). It also hands out a
+handle on the compiled function (:attr:`FusedWorkspace.c_call`), armed while the last tick
+was fused, through which :meth:`wbc.Controller.step` makes the call from the C extension that
+stages its inputs (:data:`wbc.checks.STAGE_SOURCE`): same function, same buffers, no Python
+between the inputs and the command.
 
 Cascades: the frozen rows
 -------------------------
@@ -198,13 +202,19 @@ Differences from the backend path
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable
+from functools import cache, partial
+from pathlib import Path
+from types import ModuleType
+from typing import TypeVar
 
 import casadi as ca
 import numpy as np
 
-from .cbuild import DEFAULT_FLAGS, compiled_c, compiler_available
+from .cbuild import DEFAULT_FLAGS, compiled_extension, compiled_library, compiler_available
+from .checks import STAGE_SOURCE
 from .compiler import CompiledStack
 from .errors import WbcError
 from .passes import (
@@ -222,8 +232,63 @@ from .passes import (
     why_not_fused,
 )
 from .qp import QPResult, Status
-from .solution import LevelResult, Solution, TaskResiduals, Timings
+from .solution import LevelResult, RecordedTimings, Solution, TaskResiduals, Timings
 from .workspace import Workspace
+
+W = TypeVar("W", bound=Workspace)
+
+def build_fused(fused: bool | str, why_not: Callable[[], str | None], build: Callable[[], W],
+                what: str, on_compiler: Callable[[str], None] | None = None
+                ) -> tuple[W | None, str | None]:
+    """Whether a fused (or fast) path is taken, decided the same way everywhere
+    (:meth:`wbc.Controller.build_fused_workspace` and the papers' controllers and
+    distributions): ``(build(), None)``, or ``(None, why not)``.
+
+    Args:
+        fused: ``True``, ``False`` or ``"auto"`` (the caller's argument, checked by it).
+        why_not: why the path does not apply to this problem, ``None`` if it does (called
+            unless ``fused`` is ``False``).
+        build: makes the workspace; a ``RuntimeError`` from it is a failed C compilation.
+        what: the subject of the error ``fused=True`` raises, e.g. ``"the tick cannot be
+            fused"``: ``f"fused=True, but {what}: {why}"``.
+        on_compiler: called with the reason when only the compiler is missing or failed (the
+            controller warns there), if given.
+
+    Raises:
+        WbcError: ``fused=True`` and the path is not taken.
+    """
+    if fused is False:
+        return None, "turned off (fused=False)"
+    reason = why_not()
+    if reason is None and not compiler_available():
+        reason = "no C compiler found ($CC, default cc)"
+        if on_compiler is not None:
+            on_compiler(reason)
+    if reason is None:
+        try:
+            return build(), None
+        except RuntimeError as err:  # the compiler failed
+            reason = f"C compilation failed: {err}"
+            if on_compiler is not None:
+                on_compiler(reason)
+    if fused is True:
+        raise WbcError(f"fused=True, but {what}: {reason}")
+    return None, reason
+
+
+@cache
+def stage_extension(compiler: str) -> ModuleType | None:
+    """The extension module of :data:`wbc.checks.STAGE_SOURCE` (``stage``, ``tick``, ``fused_call``,
+    ``arm``) built by ``compiler`` (once per machine, ≈ 0.5 s, then cached, see
+    :mod:`wbc.cbuild`; loaded once per process), or ``None`` if it cannot be built or loaded
+    here (no compiler, no Python headers, no ``dlopen``)."""
+    source = f"/* numpy {np.__version__} */\n{STAGE_SOURCE}"
+    try:
+        return compiled_extension("wbc_stage", source,
+                                  (*DEFAULT_FLAGS, f"-I{np.get_include()}"), ("-ldl",))
+    except (RuntimeError, ImportError):
+        return None
+
 
 #: After ``k`` consecutive failed fused calls, the next ``min(2^(k−1) − 1, MAX_SKIPPED_TICKS)``
 #: ticks take the ordinary path without trying (see the module docstring).
@@ -258,6 +323,11 @@ class FusedWorkspace(Workspace):
             consecutive failures (see the module docstring).
         bare_call: one call of the generated function on the current parameters, nothing
             else (no checks, no solution) — what benchmarks compare a tick with.
+        c_call: a handle on the compiled function for :data:`wbc.checks.STAGE_SOURCE`'s
+            ``tick`` (:meth:`wbc.Controller.step`'s whole tick in one C call), or ``None``
+            (CasADi's virtual machine, a tick supplied without its library, no C extension).
+        times: ``(started, called, model, solve)`` [s], the clock buffer the fused solution's
+            :class:`~wbc.solution.RecordedTimings` read (see :data:`wbc.checks.STAGE_SOURCE`).
     """
 
     #: The back-off's longest run of skipped ticks (module docstring); a subclass whose failed
@@ -271,9 +341,11 @@ class FusedWorkspace(Workspace):
         settings = fused_settings(
             compiled, self._blocks[0].backend.options)  # type: ignore[attr-defined]
         function = fused_function(compiled, settings)
+        library = None
         if compile:
-            function = compiled_c(function, DEFAULT_FLAGS, daqp_link_arguments(),
-                                  initialise_success)
+            library = compiled_library(function, DEFAULT_FLAGS, daqp_link_arguments(),
+                                       initialise_success)
+            function = ca.external(function.name(), str(library))
         self._qps: ca.Function | None = None  # fused_qps, made when last_qps first asks
         n, blocks = compiled.n, compiled.blocks
         x = np.zeros(n)
@@ -295,19 +367,28 @@ class FusedWorkspace(Workspace):
             compiled.variables, {}, Timings(),
             task_residuals=None if compiled.residuals is None
             else TaskResiduals(compiled, self.p, x))
-        self._attach(function, outputs, solution)
+        self._attach(function, outputs, solution, library)
 
     def _attach(self, function: ca.Function, outputs: list[np.ndarray],
-                solution: Solution) -> None:
+                solution: Solution, library: Path | None = None) -> None:
         """Make ``function`` (``p -> (x, done, ...)``, C or CasADi's virtual machine) this
         workspace's tick: it reads the workspace's ``p`` and writes its outputs into
         ``outputs`` (``outputs[0]`` is ``solution.x``, ``outputs[1]`` the one-entry ``done``,
         finite only when the call answered the tick); ``solution`` is what an answered tick
-        returns. Subclasses that generate a tick of their own call it from their
-        ``__init__`` (:class:`wbc.papers.xing.fast.AMPFastWorkspace`)."""
+        returns (its ``timings`` become the tick's :class:`~wbc.solution.RecordedTimings`).
+        ``library``: the shared library ``function`` was loaded from
+        (:func:`wbc.cbuild.compiled_library`), if any: then :attr:`c_call` is a handle on it
+        for :meth:`wbc.Controller.step`. Subclasses that generate a tick of their own call it
+        from their ``__init__`` (:class:`wbc.papers.xing.fast.AMPFastWorkspace`)."""
         self.function = function
         self.fallback_solves = 0  # ticks the generated daqp did not solve
         self.skipped_solves = 0  # ticks the ordinary path took without trying the fused call
+        self.times = np.zeros(4)  # (started, called, model, solve), see wbc.checks.STAGE_SOURCE
+        solution.timings = RecordedTimings(self.times)
+        extension = None if library is None else stage_extension(os.environ.get("CC", "cc"))
+        self.c_call = None if extension is None else extension.fused_call(
+            str(library), function.name(), self.p, list(outputs))
+        self._arm = (None if extension is None else partial(extension.arm, self.c_call))
         self._buffer, self._evaluate = function.buffer()
         self.bare_call = self._evaluate  # the generated function alone, for benchmarks
         # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res, and
@@ -320,7 +401,6 @@ class FusedWorkspace(Workspace):
         # NaN before each call and only a solved call overwrites it (with the finite cost).
         # Items as Python floats: cheaper than numpy scalars.
         self._done = memoryview(outputs[1])  # type: ignore[arg-type]
-        self._timings = solution.timings
         self._solution = solution
         self._no_qps: list = []  # self._solved after a fused tick: no backend solved a QP
         self._solve = self._solve_function()
@@ -331,13 +411,17 @@ class FusedWorkspace(Workspace):
         :meth:`solver`'s callable."""
         return self._solve(None)
 
-    def solver(self) -> Callable[[float | None], Solution]:
+    def solver(self) -> Callable[..., Solution]:
         """:meth:`solve` as a callable bound to this workspace, for a caller that solves every
         tick (:meth:`wbc.Controller.step` takes it once): a closure over the buffers, without
         the method around it. ``solver()(started)`` returns :attr:`fused_solution` when the
         fused call answered, else the ordinary path's new :class:`~wbc.Solution`; ``started``,
-        a :func:`time.perf_counter` reading taken when the caller's tick began (or ``None``),
-        makes ``timings.model`` the time from it to the solve (the caller's model stage)."""
+        a :func:`time.perf_counter` reading taken when the caller's tick began (or ``None``:
+        ``timings.model`` 0), makes ``timings.model`` the time from it to the solve (the
+        caller's model stage). ``solver()(started, True)``: the caller made the fused call
+        itself, through :attr:`c_call` armed (:data:`wbc.checks.STAGE_SOURCE`'s ``tick``, which
+        wrote the call's start into ``times[1]``), and it did not answer — counted as a failed
+        call, and the ordinary path solves the tick."""
         return self._solve
 
     @property
@@ -346,47 +430,59 @@ class FusedWorkspace(Workspace):
         life, whose arrays every answered tick rewrites (copy what you keep)."""
         return self._solution
 
-    def _solve_function(self) -> Callable[[float | None], Solution]:
+    def _solve_function(self) -> Callable[..., Solution]:
         """The fused tick as a closure over the workspace's buffers, see :meth:`solver`. It
         keeps the back-off's counters (module docstring) in its own cells: the hot path reads
-        no attribute (built once; ≈ 1 % of a Panda tick against attribute reads)."""
+        no attribute (built once; ≈ 1 % of a Panda tick against attribute reads). It arms
+        :attr:`c_call` exactly while the last tick was the fused call's: then no tick is
+        being skipped and nothing is left to record, so a tick the C call answers needs no
+        Python."""
         workspace, unset, call, done = self, self._unset, self._evaluate, self._done
-        solution, timings, no_qps = self._solution, self._timings, self._no_qps
+        solution, no_qps = self._solution, self._no_qps
+        times = memoryview(self.times)  # type: ignore[arg-type]  # (items as Python floats)
+        arm = self._arm
         ordinary, clock, nan = super().solve, time.perf_counter, math.nan
         most = self.max_skipped_ticks
         failures = 0  # consecutive failed fused calls
         skip = 0  # ticks left that take the ordinary path without trying the fused call
         fused_last = False  # the last tick was the fused call's (self._solved is no_qps)
 
-        def solve(started: float | None) -> Solution:
+        def solve(started: float | None, tried: bool = False) -> Solution:
             nonlocal failures, skip, fused_last
             if unset:
                 raise WbcError(f"parameters never set: {sorted(unset)}")
-            if skip:  # the fused call failed on the last ticks
+            if skip:  # the fused call failed on the last ticks (never armed then: not tried)
                 skip -= 1
                 workspace.skipped_solves += 1
                 t0 = clock()
             else:
-                done[0] = nan  # type: ignore[call-overload]  # NaN unless answered (__init__)
-                t0 = clock()
-                try:
-                    call()
-                except RuntimeError:  # CasADi's virtual machine raises where C returns 1
-                    pass
-                t1 = clock()
-                if done[0] == done[0]:  # not NaN: every level solved (and certified)
-                    timings.solve = t1 - t0
-                    if started is not None:
-                        timings.model = t0 - started
-                    if not fused_last:
-                        workspace._solved = no_qps  # (what last_qps, variable_bounds read)
-                        failures, fused_last = 0, True
-                    return solution
+                if tried:  # the caller's call, which did not answer
+                    t0 = times[1]
+                else:
+                    done[0] = nan  # type: ignore[call-overload]  # NaN unless answered
+                    t0 = clock()
+                    try:
+                        call()
+                    except RuntimeError:  # CasADi's virtual machine raises where C returns 1
+                        pass
+                    t1 = clock()
+                    if done[0] == done[0]:  # not NaN: every level solved (and certified)
+                        times[2] = 0.0 if started is None else t0 - started  # type: ignore
+                        times[3] = t1 - t0  # type: ignore[call-overload]
+                        if not fused_last:
+                            workspace._solved = no_qps  # (what last_qps, variable_bounds read)
+                            failures, fused_last = 0, True
+                            if arm is not None:
+                                arm(True)
+                        return solution
                 workspace.fallback_solves += 1
                 failures += 1
                 skip = min(2 ** (failures - 1) - 1, most)
             # the ordinary path (the model stage ended at t0: before the failed call, if any)
-            fused_last = False
+            if fused_last:
+                fused_last = False
+                if arm is not None:
+                    arm(False)
             answer = ordinary()
             if started is not None:
                 answer.timings.model = t0 - started
@@ -424,6 +520,6 @@ class FusedWorkspace(Workspace):
 
 # (the fused pass's names, defined in wbc.passes, stay importable from here)
 __all__ = ["CASCADE_PRIMAL_TOL", "CERTIFICATE_TOL", "DAQP_PRIMAL_TOL", "DAQP_SETTINGS",
-           "FROZEN_BAND", "FUSED_KINDS", "MAX_SKIPPED_TICKS", "FusedWorkspace",
+           "FROZEN_BAND", "FUSED_KINDS", "MAX_SKIPPED_TICKS", "FusedWorkspace", "build_fused",
            "compiler_available", "daqp_link_arguments", "fused_function", "fused_qps",
            "fused_settings", "initialise_success", "why_not_fused"]

@@ -30,6 +30,36 @@ class Timings:
         return self.model + self.assembly + self.solve
 
 
+class RecordedTimings(Timings):
+    """The :class:`Timings` of the fused tick's reused solution (:mod:`wbc.fused`), read when
+    first asked from the float64 4-vector ``times`` — ``(started, called, model, solve)``, see
+    :data:`wbc.checks.STAGE_SOURCE` — that the tick writes (``assembly`` is 0: the generated
+    call assembles and solves). A tick thus writes two floats, and builds no object;
+    :meth:`Solution.snapshot` copies the values into a plain :class:`Timings`."""
+
+    __slots__ = ("_times",)
+
+    def __init__(self, times: np.ndarray) -> None:
+        self._times = times
+        self.assembly = 0.0
+
+    @property  # type: ignore[override]
+    def model(self) -> float:
+        return float(self._times[2])
+
+    @model.setter
+    def model(self, value: float) -> None:
+        self._times[2] = value
+
+    @property  # type: ignore[override]
+    def solve(self) -> float:
+        return float(self._times[3])
+
+    @solve.setter
+    def solve(self, value: float) -> None:
+        self._times[3] = value
+
+
 @dataclass(slots=True)
 class LevelResult:
     """Outcome of one QP of the cascade.
@@ -147,9 +177,11 @@ class Solution:
     def snapshot(self) -> Solution:
         """A copy that shares no array or list with this solution (the fused tick rewrites its
         solution's buffers every tick; see :attr:`wbc.Controller.last_solution`)."""
+        timings = self.timings
         return replace(self, x=self.x.copy(),
                        levels=[replace(level, x=level.x.copy()) for level in self.levels],
-                       scales=dict(self.scales), timings=replace(self.timings),
+                       scales=dict(self.scales),
+                       timings=Timings(timings.model, timings.assembly, timings.solve),
                        notes=list(self.notes),
                        task_residuals=None if self.task_residuals is None
                        else self.task_residuals.frozen())

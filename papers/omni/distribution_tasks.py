@@ -40,7 +40,7 @@ import wbc
 from wbc.cbuild import compiler_available
 from wbc.checks import checked_array, checked_integer, checked_name, checked_vector
 from wbc.errors import InvalidValueError, ShapeError, WbcError
-from wbc.fused import FusedWorkspace, why_not_fused
+from wbc.fused import FusedWorkspace, build_fused, why_not_fused
 from wbc.tasks.linear import LinearTask
 from wbc.terms import Cost, Equality, Inequality, Task
 
@@ -254,29 +254,19 @@ class TorqueDistribution:
                          profile: str) -> FusedWorkspace | None:
         """A :class:`~wbc.fused.FusedWorkspace` when ``fused`` allows it (class docstring),
         else ``None`` with ``self.fused_reason`` saying why."""
-        reason: str | None
-        if fused is False:
-            reason = "turned off (fused=False)"
-        elif method not in FUSED_METHODS:
-            reason = f"method {method!r} is not fused (see FUSED_METHODS)"
-        elif backend != "daqp":
-            reason = f"the backend is {backend!r}; the fused QP solves with daqp"
-        elif not compiler_available():
-            reason = "no C compiler found ($CC, default cc)"
-        else:
-            reason = why_not_fused(self.stack.compile(), {})
-        if reason is None:
-            try:
-                workspace = FusedWorkspace(self.stack.compile(), profile)
-            except RuntimeError as err:  # the compiler failed
-                reason = f"C compilation failed: {err}"
-            else:
-                self.fused_reason = None
-                return workspace
-        if fused is True:
-            raise WbcError(f"fused=True, but the distribution cannot be fused: {reason}")
-        self.fused_reason = reason
-        return None
+        def why_not() -> str | None:
+            if method not in FUSED_METHODS:
+                return f"method {method!r} is not fused (see FUSED_METHODS)"
+            if backend != "daqp":
+                return f"the backend is {backend!r}; the fused QP solves with daqp"
+            if not compiler_available():
+                return "no C compiler found ($CC, default cc)"
+            return why_not_fused(self.stack.compile(), {})
+
+        workspace, self.fused_reason = build_fused(
+            fused, why_not, lambda: FusedWorkspace(self.stack.compile(), profile),
+            "the distribution cannot be fused")
+        return workspace
 
     def __call__(self, f_d, normal_forces) -> np.ndarray:
         """Wheel torques [N m] for the platform wrench ``f_d`` (3,) and the wheels' normal

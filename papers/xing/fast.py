@@ -99,6 +99,7 @@ from wbc.errors import WbcError
 from wbc.fused import (
     DAQP_SETTINGS,
     FusedWorkspace,
+    build_fused,
     daqp_link_arguments,
     fused_settings,
     initialise_success,
@@ -335,25 +336,13 @@ class AMPController(wbc.Controller):
         self._jit_ordinary = jit is True or (jit == "auto" and compiler_available())
         super().__init__(robot, stack, jit=jit, fused=fused, **kwargs)
 
-    def _fused_workspace(self, fused, backend, profile, warm_start, options):
+    def build_fused_workspace(self, fused, backend, profile, warm_start, options):
         """An :class:`AMPFastWorkspace` if the fast path applies (``fused`` in the class
-        docstring), else ``None`` with ``self.fused_reason`` saying why."""
-        if fused is False:
-            self.fused_reason = "turned off (fused=False)"
-            return None
-        reason = why_not_fast(self.compiled, self._n_base, backend, options)
-        if reason is None and not compiler_available():
-            reason = "no C compiler found ($CC, default cc)"
-        if reason is None:
-            try:
-                workspace = AMPFastWorkspace(self.compiled, self._n_base, profile, warm_start,
-                                             self._jit_ordinary, **options)
-            except RuntimeError as err:  # the compiler failed
-                reason = f"C compilation failed: {err}"
-            else:
-                self.fused_reason = None
-                return workspace
-        if fused is True:
-            raise WbcError(f"fused=True, but AMP's tick cannot take the fast path: {reason}")
-        self.fused_reason = reason
-        return None
+        docstring), else ``None`` with ``self.fused_reason`` saying why (the hook of
+        :meth:`wbc.Controller.build_fused_workspace`)."""
+        workspace, self.fused_reason = build_fused(
+            fused, lambda: why_not_fast(self.compiled, self._n_base, backend, options),
+            lambda: AMPFastWorkspace(self.compiled, self._n_base, profile, warm_start,
+                                     self._jit_ordinary, **options),
+            "AMP's tick cannot take the fast path")
+        return workspace
