@@ -106,7 +106,7 @@ def plan(out: Path, quick: bool) -> list[Step]:
              if quick else ["--ticks", "100", "--warmup", "20", "--scaling-ticks", "300",
                             "--scaling-joints", "7", "15", "30", "50"])
     steps.append(Step("bench", "wbc.experiments.benchmarks.solver_timing",
-                      [*bench, "--out", str(out / "bench")]))
+                      [*bench, "--out", str(out / "bench"), "--studies", str(out)]))
     for peer, (module, package, hint) in PEERS.items():
         # 1500 ticks per backend (3000 before the MuJoCo studies and the sweeps joined)
         ticks = ["--ticks", "150", "--backends", "daqp"] if quick else ["--ticks", "1500"]

@@ -48,13 +48,16 @@ tick (shift :data:`SHIFT_US`, a tick not fully solved charged at the control per
 has one (:mod:`wbc.experiments.benchmarks.settings`); quadprog runs without its worker thread
 unless ``--quadprog-thread``.
 
-The scaling study times the ``one_level`` stack on fixed-base serial chains of 7 to 100
-joints, sizes reported as the QPs' ``(n, m)`` (``n`` variables, ``m`` rows of ``A``; the bounds
-``lb <= x <= ub`` on top). Outputs, in ``--out``: ``solver_timing.json``
+The scaling study times the ``one_level`` stack on fixed-base serial chains of 7 to 100 joints,
+sizes reported as the QPs' ``(n, m)`` (``n`` variables, ``m`` rows of ``A``; the bounds ``lb <=
+x <= ub`` on top). The papers' controllers: each study's own daqp timing of its tick, fast path
+against ``fused=False`` (:mod:`wbc.experiments.benchmarks.study_ticks`), read from the studies'
+JSONs under ``--studies`` (default ``--out``). Outputs, in ``--out``: ``solver_timing.json``
 (raw tick samples [µs] of every cell; with ``--samples`` also per-level iterations, the
 deviations and the scaling study's ticks), ``solver_timing.md`` (tables: time, accuracy,
-settings, summary) and ``solver_timing.png`` / ``scaling.png``. ``--export DIR`` writes every
-timed tick's QPs per level as ``.npz`` files qpsolvers loads, with the referee's solution.
+settings, summary, the studies' ticks) and ``solver_timing.png`` / ``scaling.png``. ``--export
+DIR`` writes every timed tick's QPs per level as ``.npz`` files qpsolvers loads, with the
+referee's solution.
 """
 
 from __future__ import annotations
@@ -76,7 +79,7 @@ import pinocchio as pin
 import wbc
 import wbc.robots
 from wbc.errors import WbcError
-from wbc.experiments.benchmarks import accuracy
+from wbc.experiments.benchmarks import accuracy, study_ticks
 from wbc.experiments.benchmarks.loops import timed_turns
 from wbc.experiments.benchmarks.settings import (
     TOLERANCES,
@@ -89,6 +92,7 @@ from wbc.experiments.benchmarks.user_inputs import is_acceleration, load_robot_f
 from wbc.experiments.machine import describe_machine
 from wbc.experiments.progress import report_progress
 from wbc.experiments.studies.study import save_figure
+from wbc.fused import FusedWorkspace
 from wbc.robots.fixed_base import FixedBaseRobot
 from wbc.solvers import available_backends, make_backend
 from wbc.tasks import Bounds, ConfigurationLimit, FrameTask, PostureTask, VelocityLimit
@@ -327,8 +331,9 @@ def replay(robot, kind, backends: list, run: dict, warmup: int,
                 own["assembly"].append(sol.timings.assembly * 1e6)
                 own["solve"].append(sol.timings.solve * 1e6)
                 own["python"].append((elapsed - sol.timings.total) * 1e6)
-                library = ctrl.workspace.last_library_times()
-                if library and None not in library:  # (none after a fused tick)
+                measured = ctrl.workspace.last_library_times()
+                library = [t for t in measured if t is not None]
+                if library and len(library) == len(measured):  # (none after a fused tick)
                     split[backend]["library"].append(sum(library) * 1e6)
                     split[backend]["adapter"].append((sol.timings.solve - sum(library)) * 1e6)
                 if r:
@@ -359,9 +364,7 @@ def replay(robot, kind, backends: list, run: dict, warmup: int,
         entry = {
             "path": _path(controllers[b]), "kinematics": controllers[b].kinematics,
             # ticks of a fused controller answered by the ordinary path (whole run)
-            "fused_fallbacks": (controllers[b].workspace.fallback_solves
-                                + controllers[b].workspace.skipped_solves
-                                if controllers[b].fused else None),
+            "fused_fallbacks": _fused_fallbacks(controllers[b].workspace),
             "samples": {key: np.round(val, 3).tolist() for key, val in times[b].items()},
             "success_rate": float(np.mean(ok[b])), "partial_rate": float(np.mean(partial[b])),
             "full_solve_rate": float(np.mean(ok[b])),
@@ -458,6 +461,13 @@ def dedicated_replay(controller, kind, run: dict, cold: bool = False) -> np.ndar
         return time.perf_counter() - t0
 
     return timed_turns({"alone": turn}, len(states), len(states))["alone"]
+
+
+def _fused_fallbacks(workspace) -> int | None:
+    """Ticks of a fused controller's run answered by the ordinary path (``None``: not fused)."""
+    if not isinstance(workspace, FusedWorkspace):
+        return None
+    return workspace.fallback_solves + workspace.skipped_solves
 
 
 def _path(controller) -> str:
@@ -766,6 +776,9 @@ def markdown(report: dict) -> str:
                 cells = [f"{per[str(n)]['dedicated']['median']:.0f}"
                          if "dedicated" in per.get(str(n), {}) else "-" for n in joints]
                 out.append(f"| {backend} alone | " + " | ".join(cells) + " |")
+    if report.get("study_ticks"):
+        found = report["study_ticks"]
+        out += ["", *study_ticks.markdown(found["rows"], Path(found["folder"]))]
     return "\n".join(out) + "\n"
 
 
@@ -917,6 +930,10 @@ def main(argv: list[str] | None = None) -> int:
                              "of compiled C (wbc.jit; built once per machine, then cached)")
     parser.add_argument("--out", type=Path, default=Path("results"),
                         help="output folder (default ./results)")
+    parser.add_argument("--studies", type=Path, default=None, metavar="DIR",
+                        help="where the paper studies wrote their JSONs (DIR/NAME/NAME.json, "
+                             "as `wbc study NAME --out DIR`), whose daqp ticks (fast and "
+                             "ordinary path) the report repeats (default: --out)")
     # accepted only to be refused with the reason (wbc fuzz and wbc audit take them)
     parser.add_argument("--workers", default=None, help=argparse.SUPPRESS)
     parser.add_argument("--scheduler", default=None, help=argparse.SUPPRESS)
@@ -956,6 +973,8 @@ def main(argv: list[str] | None = None) -> int:
                  cold=args.cold, repeat=args.repeat, seed=args.seed,
                  quadprog_thread=args.quadprog_thread, samples=args.samples,
                  export=args.export)
+    studies = args.out if args.studies is None else args.studies
+    report["study_ticks"] = {"folder": str(studies), "rows": study_ticks.study_ticks(studies)}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "solver_timing.json").write_text(json.dumps(report))
     table = markdown(report)

@@ -51,10 +51,11 @@ Modelling choices (the paper leaves them open; all in ``parameters`` of the JSON
 Timing: the tick of each controller in the scenario runs (``parameters["tick_in_runs"]``,
 daqp, the simulation loop: the paper's, ours and the whole-body QP). Not with ``main_only``:
 every backend's paper's and whole-body controllers on the first ticks of ``forward``; on daqp
-the paper's controller (the fast path, see :mod:`wbc.papers.petric.controllers`) is timed
+each of the two (the fast path, see :mod:`wbc.papers.petric.controllers`) is timed
 interleaved tick by tick with the same controller with ``fused=False`` over that run's states
 (:func:`interleaved_timing`: ``timing["daqp"]["ordinary_tick_median_s"]`` and the largest
-command difference), its simulation-loop figures kept as ``"simulation_tick_median_s"``.
+command difference; the whole-body QP's in ``parameters["timing_whole_body"]["daqp"]``), its
+simulation-loop figures kept as ``"simulation_tick_median_s"``.
 
 Options (:class:`~wbc.experiments.studies.study.StudyOptions`):
 
@@ -92,6 +93,7 @@ from wbc.papers.petric import (
     DecoupledController,
     VelocityField,
     WholeBodyController,
+    WholeBodyQPController,
     arm_stack,
     invariance,
     posture_target,
@@ -359,9 +361,9 @@ def _with_gain(controller, robot, backend: str, kp: float, projector: str = "exa
     if kp == KP:
         return controller
     if isinstance(controller, WholeBodyController):
-        controller.qp = wbc.Controller(robot, whole_body_stack(robot, kp=kp, dt=DT),
-                                       backend=backend, dt=DT, missing_limits="ignore",
-                                       fused=controller.qp.fused)
+        controller.qp = WholeBodyQPController(robot, whole_body_stack(robot, kp=kp, dt=DT),
+                                              backend=backend, dt=DT, missing_limits="ignore",
+                                              fused=controller.qp.fused)
     else:
         controller.arm = wbc.Controller(robot, arm_stack(robot, kp=kp, dt=DT,
                                                          projector=projector),
@@ -1002,14 +1004,15 @@ def run(backend: str, out_dir: Path, quick: bool,
                                                   "omega_max", "alpha", "dv_max", "domega_max")},
     }
     summary = _summary(quick, failed, options, base_lag, lag_fit, runs, timing.get("daqp"),
-                       tick_in_runs)
+                       tick_in_runs, timing_wb.get("daqp"))
     return StudyResult("petric", claims, runs, timing, figures, summary, parameters,
                        replays=replays, robot=ROBOT, options=options,
                        plant_timing=plant_timing(options, 0.0, main_runs))
 
 
 def _summary(quick: bool, failed: dict[str, int], options: StudyOptions, base_lag: float,
-             lag_fit: dict, runs: dict, daqp: dict | None, tick_in_runs: dict) -> str:
+             lag_fit: dict, runs: dict, daqp: dict | None, tick_in_runs: dict,
+             daqp_whole_body: dict | None) -> str:
     lines = [
         "Petrič & Žlajpah's decoupled controller (eq. 22 DLS arm with eq. 26's damped "
         "projector + the spatially modulated velocity field on the base) on the Tiago + Panda "
@@ -1046,6 +1049,14 @@ def _summary(quick: bool, failed: dict[str, int], options: StudyOptions, base_la
                   f"{daqp['max_command_difference']:.1e} apart. In the simulation loop (no "
                   "ordinary tick in between, warmer caches) the fast tick's median is "
                   f"{1e6 * daqp['simulation_tick_median_s']:.1f} µs."]
+    if daqp_whole_body is not None:
+        fast, ordinary = (daqp_whole_body[k] for k in ("tick_median_s", "ordinary_tick_median_s"))
+        lines += ["", "The whole-body QP's tick on daqp, fast path (the field and the cascade as "
+                  "generated C where the field's twist is reachable, `wbc.papers.petric.fast`) "
+                  "against `fused=False`, interleaved the same way: median "
+                  f"{1e6 * fast:.1f} µs against {1e6 * ordinary:.1f} µs, "
+                  f"{fast / ordinary:.2f}×; the commands at most "
+                  f"{daqp_whole_body['max_command_difference']:.1e} apart."]
     failing = {k: n for k, n in failed.items() if n}
     if failing:
         lines += ["", "Ticks not solved in the timing runs (the command then comes from the "

@@ -12,6 +12,9 @@ What lives where:
 * :mod:`~wbc.papers.petric.controllers` — :class:`DecoupledController` (the paper's: arm and
   base independent) and :class:`WholeBodyController`, on a fast path by default (the arm's
   fused QPs, the TEE point and the field as generated C; ``fused=False`` turns it off);
+* :mod:`~wbc.papers.petric.fast` — the whole-body QP's fast tick
+  (:class:`WholeBodyQPController`: two generated daqp calls where the field's twist is
+  reachable, the ordinary path elsewhere);
 * :mod:`~wbc.papers.petric.closed_form` (the base's rate limits) and
   :mod:`~wbc.papers.petric.closed_form_arm` (eq. 22, eq. 26's damped projector) — the closed
   forms (also in :mod:`wbc.solvers.reference`);
@@ -35,6 +38,14 @@ from .controllers import (
     DecoupledController,
     FieldDriver,
     WholeBodyController,
+)
+from .fast import (
+    WholeBodyFastWorkspace,
+    WholeBodyQPController,
+    certified,
+    fast_qps,
+    reachable_tick,
+    why_not_fast,
 )
 from .invariance import (
     held_point_depths,
@@ -63,16 +74,22 @@ __all__ = [
     "PETRIC_LAMBDA",
     "VelocityField",
     "WholeBodyController",
+    "WholeBodyFastWorkspace",
+    "WholeBodyQPController",
     "arm_stack",
+    "certified",
     "damped_projector",
     "dls_arm_velocity",
+    "fast_qps",
     "held_point_depths",
     "placements",
     "posture_target",
     "projector_leak",
+    "reachable_tick",
     "rate_limit_interval",
     "rate_limited_twist",
     "smoothstep",
     "touch_height",
+    "why_not_fast",
     "whole_body_stack",
 ]

@@ -2,12 +2,14 @@
 the velocity field on the base) and, beyond the paper, :class:`WholeBodyController` (the
 field's base twist as a soft reference in one whole-body QP); both ``step(q, v, ee=T)``.
 
-The fast path (``fused="auto"``, the default): the arm's QPs as :class:`wbc.Controller`'s
-fused tick (:mod:`wbc.fused`) and the base's field — the reduced Panda's TEE point from ``q``
-and :meth:`VelocityField.step` — as one more generated C function
-(:meth:`VelocityField.symbolic_step`), both called on preallocated buffers. It computes what
-the ordinary path (``fused=False``: the QPs through the Python backend, the TEE point from
-pinocchio and the field in Python floats) computes, to rounding (``tests/test_petric_fast.py``).
+The fast path (``fused="auto"``, the default): the base's field — the reduced Panda's TEE
+point from ``q`` and :meth:`VelocityField.step` — as one generated C function
+(:meth:`VelocityField.symbolic_step`), and the QPs as generated C too: the decoupled arm's as
+:class:`wbc.Controller`'s fused tick (:mod:`wbc.fused`), the whole-body cascade as the tick of
+:mod:`wbc.papers.petric.fast` (where the field's twist is reachable; the ordinary path answers
+the other ticks), all called on preallocated buffers. It computes what the ordinary path
+(``fused=False``: the QPs through the Python backend, the TEE point from pinocchio and the
+field in Python floats) computes, to rounding (``tests/test_petric_fast.py``).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from wbc.checks import all_finite, as_float_array
 from wbc.errors import NonFiniteError, ShapeError
 from wbc.robots import ReducedPanda
 
+from .fast import WholeBodyQPController
 from .stacks import DT, arm_stack, whole_body_stack
 from .velocity_field import VelocityField
 
@@ -150,13 +153,13 @@ class DecoupledController:
 class WholeBodyController:
     """Beyond the paper: the field's ``(v, ω)`` as a soft reference one level below the TCP
     task of a whole-body QP (:func:`whole_body_stack`). Same ``step`` and ``fused`` as
-    :class:`DecoupledController`."""
+    :class:`DecoupledController` (the QP's fast path: :class:`WholeBodyQPController`)."""
 
     def __init__(self, robot, field: VelocityField, backend: str = "daqp",
                  dt: float = DT, fused: bool | str = "auto") -> None:
-        self.qp = wbc.Controller(robot, whole_body_stack(robot, dt=dt), backend=backend, dt=dt,
-                                 missing_limits="ignore",  # no position limits, as eq. 22
-                                 fused=fused)
+        self.qp = WholeBodyQPController(robot, whole_body_stack(robot, dt=dt), backend=backend,
+                                        dt=dt, missing_limits="ignore",  # as eq. 22
+                                        fused=fused)
         self.driver = FieldDriver(robot, field, fused)
 
     @property
