@@ -57,6 +57,9 @@ MAIN_RUNS = {"sorour": "table_ii/compensated", "petric": "sine_large/whole_body"
 #: the MuJoCo studies, longest first (they run two at a time on two cores: the longest one
 #: beside the others)
 PHYSICS_ORDER = ("xing", "petric", "sorour", "omni")
+#: the environment of the processes that run steps side by side (read by numpy's BLAS when it
+#: loads in them)
+SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 #: seeds of each study's sweep (``--quick``: :data:`SWEEP_SEEDS_QUICK`, the studies' quick mode)
 SWEEP_SEEDS = 16
 SWEEP_SEEDS_QUICK = 2
@@ -171,18 +174,33 @@ def run_concurrently(steps: list[Step], log_dir: Path, on_done: Callable[[Step],
             on_done(step)
         return
     import multiprocessing
+    import os
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = {pool.submit(_run_step_in_child, step, log_dir): step for step in steps}
-        for future in as_completed(futures):
-            step = futures[future]
-            try:
-                done = future.result()
-                step.status, step.reason, step.seconds = done.status, done.reason, done.seconds
-            except Exception as err:  # the child process died (run_step itself never raises)
-                step.status, step.reason = "failed", f"{type(err).__name__}: {err}"
-            on_done(step)
+    # one BLAS thread per process, as Dask's workers get (the sweeps): OpenBLAS's own threads
+    # on small matrices, one set per process, would contend for the same cores. The children
+    # are spawned as steps are submitted and read it when numpy loads in them.
+    saved = {name: os.environ.get(name) for name in SINGLE_THREADED}
+    os.environ.update(SINGLE_THREADED)
+    try:
+        with ProcessPoolExecutor(workers,
+                                 mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = {pool.submit(_run_step_in_child, step, log_dir): step for step in steps}
+            for future in as_completed(futures):
+                step = futures[future]
+                try:
+                    done = future.result()
+                    step.status, step.reason, step.seconds = (done.status, done.reason,
+                                                              done.seconds)
+                except Exception as err:  # the child died (run_step itself never raises)
+                    step.status, step.reason = "failed", f"{type(err).__name__}: {err}"
+                on_done(step)
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name)
+            else:
+                os.environ[name] = value
 
 
 def _last_line(text: str) -> str:

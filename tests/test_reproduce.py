@@ -4,6 +4,7 @@ studies' JSON exist and parse, every claim has a boolean ``holds``. No timing is
 from __future__ import annotations
 
 import json
+import os
 
 from helpers import assert_study_contract
 
@@ -49,3 +50,21 @@ def test_a_failing_step_does_not_lose_the_others(tmp_path, monkeypatch):
     assert steps[1].status in ("ok", "failed")  # it ran
     report = (tmp_path / "REPORT.md").read_text()
     assert "Failed steps" in report and "no_such_study" in report
+
+
+def test_steps_side_by_side_run_in_single_threaded_processes(tmp_path, monkeypatch):
+    """Concurrent steps (the MuJoCo studies) run in spawned processes with one BLAS thread
+    each (OpenBLAS's threads, one set per process, would contend for the cores); their
+    status comes back, and this process's environment is left as it was."""
+    monkeypatch.setattr(reproduce, "cores", lambda: 2)
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    steps = [reproduce.Step(f"step {code}", "reproduce_steps", [str(code)], concurrent=True)
+             for code in (0, 3)]
+    finished = []
+    reproduce.run_concurrently(steps, tmp_path, finished.append)
+    assert sorted(s.name for s in finished) == ["step 0", "step 3"]
+    assert [s.status for s in steps] == ["ok", "failed"] and "exit code 3" in steps[1].reason
+    for step in steps:
+        log = (tmp_path / f"{step.name.replace(' ', '_')}.log").read_text()
+        assert log.strip() == str(reproduce.SINGLE_THREADED), log
+    assert "OPENBLAS_NUM_THREADS" not in os.environ
