@@ -159,10 +159,11 @@ What stays in Python, and why
   random three-level cascades with such a level: 193 fell back, the 7 the setup accepted
   agreed with the ordinary path to 6e-11.) A stack whose fused call keeps failing would pay
   for a failed call on top of the ordinary path every tick (the whole-body stack of ``wbc
-  study petric``, level 1 covering only the base: 2490 of 2490 ticks); so after ``k``
+  study petric`` on this generic path, level 1 covering only the base: 2490 of 2490 ticks —
+  it now has a fast tick of its own, :mod:`wbc.papers.petric.fast`); so after ``k``
   consecutive failures the next ``min(2^(k−1) − 1, 63)`` ticks take the ordinary path without
-  trying (:attr:`FusedWorkspace.skipped_solves`; that study's quick run: 50 failed calls in
-  2490 ticks), and a success resets that: one isolated failure (an infeasible tick) costs
+  trying (:attr:`FusedWorkspace.skipped_solves`; that stack's quick run here: 50 failed calls
+  in 2490 ticks), and a success resets that: one isolated failure (an infeasible tick) costs
   nothing later. Variables fixed by their bounds
   (``lb == ub``, pinned by a zero mobility, whose metric ``M⁺`` is 0 there) get 1 on the
   diagonal of ``H`` in the fused QP: constant on the feasible set, so the same optimum, and
