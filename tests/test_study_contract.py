@@ -10,6 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from helpers import assert_study_contract  # noqa: E402
 
 from wbc.errors import InvalidValueError, UnknownNameError  # noqa: E402
 from wbc.experiments.studies.study import (  # noqa: E402
@@ -20,6 +21,7 @@ from wbc.experiments.studies.study import (  # noqa: E402
     save_figure,
     study_main,
     timing_summary,
+    verdict_cell,
 )
 
 
@@ -43,8 +45,10 @@ def test_study_main_writes_the_contract(tmp_path, capsys):
     data = json.loads((tmp_path / "fake" / "fake.json").read_text())
     assert {"claims", "runs", "timing", "machine", "parameters", "summary"} <= set(data)
     claim = data["claims"][0]
-    assert set(claim) == {"id", "statement", "paper", "ours", "holds", "note"}
-    assert claim["holds"] is True and claim["ours"] == pytest.approx(1 / 3)
+    assert set(claim) == {"id", "statement", "paper", "ours", "holds", "note", "missing",
+                          "verdict"}
+    assert claim["holds"] is True and claim["verdict"] == "holds"
+    assert claim["ours"] == pytest.approx(1 / 3)
     assert data["runs"]["line"]["daqp"]["ee_error"] == [0.3, 0.1, None]  # NaN has no JSON form
     assert data["timing"]["daqp"] == {"tick_median_s": 2e-5, "tick_p95_s": pytest.approx(2.9e-5),
                                       "ticks": 3}
@@ -99,3 +103,32 @@ def test_parse_params_reads_lists_and_refuses_unknown_keys_and_bad_values():
             parse_params(bad, swept)
     assert StudyOptions(params={"gain": 4.0}).value("gain", swept) == 4.0
     assert StudyOptions().value("gain", swept) == 10.0
+
+
+def test_verdicts_follow_holds_and_missing():
+    assert Claim("a", "s", 1, 1, True).verdict == "holds"
+    assert Claim("b", "s", 1, 2, False).verdict == "fails"
+    unreachable = Claim("c", "s", 1, 2, False, "n", missing="roller compliance")
+    assert unreachable.verdict == "not reproducible with this model"
+    assert verdict_cell(unreachable) == "**not reproducible** (lacks roller compliance)"
+    assert verdict_cell(Claim("b", "s", 1, 2, False)) == "**no**"
+
+
+def test_a_claim_that_holds_lacks_nothing():
+    with pytest.raises(ValueError, match="holds, so nothing is missing"):
+        Claim("a", "s", 1, 1, True, missing="rollers")
+
+
+def test_the_json_and_the_table_carry_the_verdict():
+    result = StudyResult("x", claims=[Claim("a", "s", 1, 1, True),
+                                      Claim("c", "s", 1, 2, False, missing="rollers")],
+                         runs={}, timing={})
+    data = json.loads(json.dumps(result.to_json()))
+    assert_study_contract(data)
+    assert [c["verdict"] for c in data["claims"]] == ["holds",
+                                                      "not reproducible with this model"]
+    table = result.markdown()
+    assert "1 of 2 claims reproduced" in table and "1 not reproducible with this model" in table
+    assert "**not reproducible** (lacks rollers)" in table
+    # an older JSON without the fields still renders
+    assert verdict_cell({"holds": False}) == "**no**"
