@@ -25,18 +25,18 @@ def kinematic(quick_studies):
 
 
 def test_default_run_keeps_its_claims(kinematic):
-    """The claims of the documented quick run, as computed before the plants and options."""
+    """The claims of the documented quick run (the LWR's limits, damped eq. 14, issue #29)."""
     assert kinematic["plant"] == "kinematic" and kinematic["seed"] is None
     claims = {c["id"]: c for c in kinematic["claims"]}
-    assert claims["pinv_faster_far"]["ours"] == {"pinv": [11.848], "proposed": [26.403],
-                                                 "compensated": [25.495]}
-    assert claims["pinv_larger_footprint"]["ours"] == {"pinv": 0.814, "proposed": 0.707,
-                                                       "compensated": 0.725}
-    assert claims["compensation_lowers_steady_error"]["ours"] == {"proposed": [0.534],
-                                                                  "compensated": [0.721]}
-    assert claims["steer_acceleration_limit"]["ours"] == {"ticks_over": 0, "max": 3.0}
-    assert [c["holds"] for c in kinematic["claims"]] == [True, True, True, False, True, False,
-                                                         False, True, True]
+    assert claims["pinv_faster_far"]["ours"] == {"pinv": [11.849], "proposed": [25.202],
+                                                 "compensated": [38.085]}
+    assert claims["pinv_larger_footprint"]["ours"] == {"pinv": 0.814, "proposed": 0.733,
+                                                       "compensated": 0.71}
+    assert claims["compensation_lowers_steady_error"]["ours"] == {"proposed": [0.0515],
+                                                                  "compensated": [2.52]}
+    assert claims["steer_acceleration_limit"]["ours"] == {"ticks_over": 2, "max": 3.441}
+    assert [c["holds"] for c in kinematic["claims"]] == [True, True, True, False, False, False,
+                                                         False, True, False]
     assert kinematic["plant_timing"]["plant"] == "kinematic"
     assert "step_median_s" not in kinematic["plant_timing"]
 
@@ -91,9 +91,10 @@ def test_seed_restages_the_runs_reproducibly(tmp_path, kinematic):
 def test_parameters_are_checked_and_used(tmp_path):
     with pytest.raises(wbc.UnknownNameError):
         sorour.run("daqp", tmp_path, True, StudyOptions(params={"damping": 0.1}))
-    result = sorour.run("daqp", tmp_path, True, StudyOptions(params={"steer_rate_max": 0.5},
-                                                              main_only=True))
+    result = sorour.run("daqp", tmp_path, True, StudyOptions(
+        params={"steer_rate_max": 0.5, "compensation_damping": 0.1}, main_only=True))
     assert result.parameters["steer_rate_max"] == 0.5
+    assert result.parameters["compensation_damping"] == 0.1
     claim = next(c for c in result.claims if c.id == "steer_rate_limit")
     # the steer joints now turn at up to 0.5 rad/s, the limit the claim checks
     assert claim.ours == pytest.approx(0.5, abs=1e-4) and claim.holds

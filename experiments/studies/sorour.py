@@ -20,12 +20,10 @@ controller (:class:`SteeredJoints`) turns the commanded base twist into the stee
 rates of the MPO700's real steer and drive joints (``Simulation(command="joints")``), and the
 base moves as its wheels on the floor make it.
 
-The runs use the controllers' ordinary path (``fused=False``: the steering controller's ICR QP
-and eq. 14 on the Python backend, the stack fused on daqp as always), the path their documented
-numbers came from: the compensated run is chaotic — moving the start's second arm joint by
-1e-12 rad flips two claims — so the fast path (:mod:`wbc.papers.sorour.controller`), equal to
-it tick by tick to 7.4e-10 on these runs (``tests/test_sorour_fast.py``), would move the claims
-as any change of rounding does.
+The arm has the LWR-IV's joint position and velocity limits (the paper's formulation has none;
+:mod:`wbc.papers.sorour.controller`), starts inside them (:func:`within_joint_limits`), its
+posture error is wrapped, and eq. 14 is damped (μ = Table I's ρ by default). The runs take the
+controllers' path :data:`RUN_PATH`.
 
 Timing (not with ``main_only``): the compensated controller's full tick per backend over 200
 states of the daqp run; on daqp the default (fast) controller interleaved tick by tick with
@@ -56,7 +54,7 @@ from wbc.robots import load
 from wbc.sim import Simulation
 from wbc.solvers import available_backends
 from wbc.tasks import RpyPoseTask
-from wbc.tasks.rpy_pose import pose_error
+from wbc.tasks.rpy_pose import pose_error, rpy_jacobian
 from wbc.viz.record import Recording
 
 from .study import (
@@ -77,10 +75,14 @@ from .study import (
 __all__ = ["PARAMETERS", "PARAMETERS_SWEPT", "POSES", "RANDOM_ELEMENTS", "SorourController",
            "SteeredJoints", "main", "run"]
 
-#: the steering controller's constants a sweep may change (``--param KEY=V``); the keys are
-#: those of :data:`PARAMETERS`, so the JSON's ``"parameters"`` show the values used. Eq. 14 has
-#: no damping (an exact minimum-norm least-squares QP), so there is none to sweep.
+#: the constants a sweep may change (``--param KEY=V``); the keys of :data:`PARAMETERS` where
+#: they are Table I's or the steering controller's, so the JSON's ``"parameters"`` show the
+#: values used.
 PARAMETERS_SWEPT = {
+    "compensation_damping": (PARAMETERS["rho"], "μ of eq. 14's damped pseudo-inverse (default "
+                             "Table I's ρ: the paper's damped pseudo-inverse) [-]"),
+    "daqp_primal_tol": (1e-6, "daqp's primal tolerance in the stack's and eq. 14's QPs "
+                        "(default daqp's own; the fused stack caps it, wbc.fused) [-]"),
     "icr_gain": (PARAMETERS["icr_gain"], "λ of the ICR velocity controller, our choice [1/s]"),
     "steer_rate_max": (PARAMETERS["steer_rate_max"],
                        "β̇max, the steer joints' rate limit (an estimate) [rad/s]"),
@@ -116,6 +118,15 @@ DECK = np.array([[0.495, 0.325], [-0.495, 0.325], [-0.495, -0.325], [0.495, -0.3
 ARM_FRAMES = ("lwr_joint_2", "lwr_joint_4", "lwr_joint_6", "lwr_flange", "ee")
 FOOTPRINT_WINDOW = 20.0  # [s]: the travel to the first, far pose
 STEADY_WINDOW = 2.0  # [s]: the end of each pose interval
+#: a pose counts as reached when ||e_p|| stays within this over the last STEADY_WINDOW of its
+#: interval [m, rad] (our choice, fixed before the runs: a fine-manipulation precision, 1 cm /
+#: 0.01 rad; r_fm = 0.25 m would make "ψ = 1 where reached" true by eq. 11's definition)
+CONVERGED = 0.01
+#: times [s] of the footprint snapshots (Fig. 5): the travel to the first pose
+SNAPSHOTS = (0.0, 5.0, 10.0, 15.0, 19.975)
+#: the runs' path (``fused`` of the controllers): see the README's Sorour section for the check
+#: that the fast and ordinary paths give the same claims
+RUN_PATH: bool | str = False
 
 
 def target_at(t: float, poses=POSES) -> np.ndarray:
@@ -173,7 +184,7 @@ def base_steering(robot, backend: str, options: StudyOptions) -> SteerableContro
                                steer_rate=value("steer_rate_max"),
                                steer_acceleration=value("steer_acceleration_max"),
                                icr_gain=value("icr_gain"), drive_gain=value("Kp"),
-                               backend=backend, fused=False)  # the runs' path (module docstring)
+                               backend=backend, fused=RUN_PATH)
 
 
 class SteeredJoints:
@@ -212,32 +223,53 @@ class SteeredJoints:
 def within_joint_limits(robot, q: np.ndarray) -> np.ndarray:
     """``q`` with each arm angle moved by whole turns (2π [rad]) into its joint limits where a
     turn brings it there: the same physical pose. The IK start of :func:`initial_configuration`
-    (no joint limits, as the paper's formulation) has the LWR's joints 1 and 3 at 221° and 212°,
-    beyond their ±170°; MuJoCo's joints have the limits and would throw the arm from there."""
+    (solved without joint limits) has the LWR's joints 1 and 3 at 221° and 212°, beyond their
+    ±170°. Raises :class:`wbc.WbcError` if an angle has no turn inside its limits."""
     q = q.copy()
     lower, upper = robot.limits.q_lower, robot.limits.q_upper
     for i in range(N_BASE, robot.nq):
         turned = q[i] + 2.0 * math.pi * np.arange(-2, 3)
         inside = turned[(turned >= lower[i]) & (turned <= upper[i])]
-        if not lower[i] <= q[i] <= upper[i] and inside.size:
+        if not inside.size:
+            raise wbc.WbcError(f"start: joint {i} at {q[i]:.3f} rad has no turn within "
+                               f"[{lower[i]:.3f}, {upper[i]:.3f}]")
+        if not lower[i] <= q[i] <= upper[i]:
             q[i] = inside[np.argmin(np.abs(inside - q[i]))]
     return q
+
+
+def floor_outline(robot, q) -> tuple[np.ndarray, np.ndarray]:
+    """``(deck corners (4, 2), arm points (5, 2))`` [m] on the floor at ``q``: the deck outline
+    and the arm's joints 2, 4, 6, flange and end tip."""
+    c, s = math.cos(q[2]), math.sin(q[2])
+    deck = DECK @ np.array([[c, s], [-s, c]]) + q[:2]
+    arm = np.array([robot.frame_pose(q, f)[:2, 3] for f in ARM_FRAMES])
+    return deck, arm
+
+
+def arm_singular_value(robot, q) -> float:
+    """Smallest singular value of the arm's columns of the end tip's RPY Jacobian at ``q``
+    (the ``J_a`` eq. 14 inverts)."""
+    pose = robot.frame_pose(q, "ee")
+    J = rpy_jacobian(robot.frame_jacobian(q, "ee"), pose[:3, :3], q[2])
+    return float(np.linalg.svd(J[:, N_BASE:], compute_uv=False)[-1])
 
 
 def footprint_area(robot, q) -> float:
     """Area [m²] of the convex hull of the deck outline and the arm's joints and end tip,
     projected on the floor."""
-    c, s = math.cos(q[2]), math.sin(q[2])
-    deck = DECK @ np.array([[c, s], [-s, c]]) + q[:2]
-    arm = np.array([robot.frame_pose(q, f)[:2, 3] for f in ARM_FRAMES])
-    return float(ConvexHull(np.vstack([deck, arm])).volume)
+    return float(ConvexHull(np.vstack(floor_outline(robot, q))).volume)
 
 
 def simulate(robot, variant: str, backend: str, q0: np.ndarray, seconds: float,
              options: StudyOptions = DOCUMENTED, poses=POSES):
     """One run of ``variant`` from ``q0`` for ``seconds`` [s] towards the schedule ``poses`` on
     the plant of ``options`` (the steering constants from its ``params``)."""
-    controller = SorourController(robot, variant, backend, fused=False)  # (module docstring)
+    tolerance = options.value("daqp_primal_tol", PARAMETERS_SWEPT)
+    controller = SorourController(
+        robot, variant, backend, fused=RUN_PATH,
+        compensation_damping=options.value("compensation_damping", PARAMETERS_SWEPT),
+        qp_options={"primal_tol": tolerance} if backend == "daqp" else None)
     # its next-sample prediction (eq. 14) must use the base's steering constants
     controller.steering = base_steering(robot, backend, options)
 
@@ -246,6 +278,8 @@ def simulate(robot, variant: str, backend: str, q0: np.ndarray, seconds: float,
         return np.array([np.linalg.norm(e[:3]), np.linalg.norm(e)])
 
     signals = {"errors": errors, "psi": lambda tick: controller.psi,
+               # the arm's rates are the command's last entries on both plants' commands
+               "arm_rate_max": lambda tick: float(np.abs(tick.command[N_BASE - robot.nv:]).max()),
                "stack_s": lambda tick: controller.tick_parts["stack"],
                "compensation_s": lambda tick: controller.tick_parts["compensation"]}
     # the paper's wheels: each contact beside its steer axis (its inverse actuation model)
@@ -276,12 +310,15 @@ def simulate(robot, variant: str, backend: str, q0: np.ndarray, seconds: float,
 
 
 def series(robot, run) -> dict:
-    """The JSON series of one run, with the quantities the claims use; on MuJoCo also what only
-    physics gives: per tick the wheels' slip speed [m/s], normal forces [N], largest actuator
-    saturation share [-], the odometry error of the base's position [m] and heading [rad], and
-    the measured and commanded steering angles [rad]."""
+    """The JSON series of one run, with the quantities the claims use (``"arm_rate_max"`` the
+    largest commanded arm rate [rad/s] per tick, ``"arm_sigma_min"`` :func:`arm_singular_value`
+    at ``"footprint_t"`` (every 0.1 s, as the footprint), ``"arm_q_range"`` each arm joint's
+    smallest and largest angle [rad], ``"snapshots"`` the floor outlines at :data:`SNAPSHOTS`);
+    on MuJoCo also what only physics gives: per tick the wheels' slip speed [m/s], normal
+    forces [N], largest actuator saturation share [-], the odometry error of the base's position
+    [m] and heading [rad], and the measured and commanded steering angles [rad]."""
     every = max(1, int(round(0.1 / run.dt)))  # footprint every 0.1 s
-    out = run.series(["t", "base_velocity", "tick_s", "steer_rate_max",
+    out = run.series(["t", "base_velocity", "tick_s", "steer_rate_max", "arm_rate_max",
                       "steer_acceleration_max", "icr_qp_s", "stack_s", "compensation_s"])
     errors = run.signals["errors"]
     out["ee_error"] = errors[:, 0].tolist()
@@ -290,6 +327,14 @@ def series(robot, run) -> dict:
     out["psi"] = None if np.isnan(psi).all() else psi.tolist()
     out["base_pose"] = run.q[:, :3].tolist()
     out["dexterity_distance"] = np.linalg.norm(run.q[:, N_BASE:] - Q_DEX, axis=1).tolist()
+    out["arm_sigma_min"] = [arm_singular_value(robot, q) for q in run.q[::every]]
+    out["arm_q_range"] = [run.q[:, N_BASE:].min(axis=0).tolist(),
+                          run.q[:, N_BASE:].max(axis=0).tolist()]
+    out["snapshots"] = []
+    for t in SNAPSHOTS:
+        if t <= run.t[-1]:
+            deck, arm = floor_outline(robot, run.q[int(np.argmin(np.abs(run.t - t)))])
+            out["snapshots"].append({"t": t, "deck": deck.tolist(), "arm": arm.tolist()})
     out["footprint_t"] = run.t[::every].tolist()
     out["footprint_area"] = [footprint_area(robot, q) for q in run.q[::every]]
     if "plant_step_s" in run.signals:
@@ -309,8 +354,8 @@ def _intervals(t_end: float):
 
 
 def per_pose(s: dict, key: str, how: str) -> list[float]:
-    """Per pose interval: ``"auc"`` (∫ key dt), ``"steady"`` (mean over its last
-    ``STEADY_WINDOW`` s) or ``"end"`` (last value)."""
+    """Per pose interval: ``"auc"`` (∫ key dt), ``"steady"``, ``"steady_max"``,
+    ``"steady_min"`` (mean, largest, smallest value over its last ``STEADY_WINDOW`` s)."""
     t, y = np.asarray(s["t"]), np.asarray(s[key], dtype=float)
     dt = PARAMETERS["ts"]
     out = []
@@ -318,10 +363,10 @@ def per_pose(s: dict, key: str, how: str) -> list[float]:
         inside = (t >= start - 1e-9) & (t < end - 1e-9)
         if how == "auc":
             out.append(float(y[inside].sum() * dt))
-        elif how == "steady":
-            out.append(float(y[inside & (t >= end - STEADY_WINDOW - 1e-9)].mean()))
         else:
-            out.append(float(y[inside][-1]))
+            window = y[inside & (t >= end - STEADY_WINDOW - 1e-9)]
+            out.append(float(window.mean() if how == "steady" else
+                             window.max() if how == "steady_max" else window.min()))
     return out
 
 
@@ -371,15 +416,15 @@ def claims(runs: dict, parameters: dict = PARAMETERS) -> list[Claim]:
         all(c < p for c, p in zip(auc["compensated"], auc["proposed"], strict=True)),
         "area under ||e_p|| [m·s, rad·s] per pose interval"))
     for v in VARIANTS[1:]:
-        end_psi = per_pose(runs[v], "psi", "end")
-        reached = per_pose(runs[v], "ee_error", "end")
+        worst = per_pose(runs[v], "pose_error_norm", "steady_max")
+        lowest_psi = per_pose(runs[v], "psi", "steady_min")
         out.append(Claim(
-            f"psi_one_at_reached_poses_{v}", f"ψ = 1 at every reached pose ({v})", "yes (Fig. 7)",
-            end_psi, all(p == 1.0 for p, e in zip(end_psi, reached, strict=True)
-                         if e <= PARAMETERS["r_fm"]) and all(
-                e <= PARAMETERS["r_fm"] for e in reached),
-            "ψ at the end of each pose interval; a pose counts as reached when its position "
-            f"error is within r_fm; final position errors [m]: {[round(e, 4) for e in reached]}"))
+            f"psi_one_at_convergence_{v}", f"every pose is reached, with only the arm moving "
+            f"(ψ = 1) there ({v})", "yes (Fig. 7)",
+            {"max_error": [float(f"{e:.3g}") for e in worst], "min_psi": lowest_psi},
+            all(e <= CONVERGED for e in worst) and all(p == 1.0 for p in lowest_psi),
+            f"per pose over the last {STEADY_WINDOW:g} s of its interval: the largest ||e_p|| "
+            f"[m, rad] (reached: <= {CONVERGED:g}, our criterion) and the smallest ψ"))
         t, psi = np.asarray(runs[v]["t"]), np.asarray(runs[v]["psi"])
         inside = (t >= POSES[1][0]) & (t < POSES[3][0])
         if inside.any():
@@ -398,7 +443,10 @@ def claims(runs: dict, parameters: dict = PARAMETERS) -> list[Claim]:
         "steer_acceleration_limit", "steer-acceleration limits are never exceeded",
         f"β̈max (ours: {accel} rad/s²)", {"ticks_over": over, "max": round(float(accels.max()), 3)},
         over == 0, "ticks above β̈max: the ICR QP keeps the acceleration cones soft (least "
-        "violation) when the four wheels cannot all keep them at once"))
+        "violation) when the four wheels cannot all keep them at once",
+        missing="" if over == 0 else "a steering controller that keeps the acceleration cones "
+        "when the four wheels' cones share no point (§IV states them as constraints of the "
+        "ICR QP, whose two unknowns cannot meet eight of them in general; ours relaxes them)"))
     return out
 
 
@@ -440,12 +488,49 @@ def figures(runs: dict, out_dir: Path) -> list[str]:
     fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
     for ax, v in zip(axes, VARIANTS, strict=True):
         ax.plot(runs[v]["t"], runs[v]["pose_error_norm"], label=v)
+        top = max(runs[v]["pose_error_norm"])
+        # Fig. 6's numbers: the area under the curve per pose interval
+        for (_, start, end), area in zip(_intervals(runs[v]["t"][-1] + PARAMETERS["ts"]),
+                                         per_pose(runs[v], "pose_error_norm", "auc"),
+                                         strict=True):
+            ax.axvline(start, color="0.7", lw=0.8)
+            ax.text((start + end) / 2, 0.8 * top, f"{area:.2f}", ha="center", fontsize=8)
         ax.set_ylabel(f"{v}\n||e_p|| [m, rad]")
         ax.set_xlabel("time [s]")
         ax.grid(True)
         ax.legend(loc="upper right")
-    fig.suptitle("Pose error norm per variant")
+    fig.suptitle("Pose error norm per variant (numbers: area under the curve per pose "
+                 "[m·s, rad·s])")
     names.append(save_figure(fig, out_dir / "sorour_error.png"))
+    fig, axes = plt.subplots(2, 3, figsize=(13, 8))
+    for ax, v in zip(axes[0], VARIANTS, strict=True):  # Fig. 5: snapshots from above
+        for k, snap in enumerate(runs[v]["snapshots"]):
+            deck, arm = np.asarray(snap["deck"]), np.asarray(snap["arm"])
+            color = plt.get_cmap("viridis")(k / max(1, len(runs[v]["snapshots"]) - 1))
+            ax.fill(deck[:, 0], deck[:, 1], color=color, alpha=0.25)
+            ax.plot(arm[:, 0], arm[:, 1], "o-", color=color, ms=3,
+                    label=f"t = {snap['t']:.0f} s")
+        ax.set_aspect("equal")
+        ax.set_title(f"{v}: deck and arm from above")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    axes[0][0].legend(fontsize=7)
+    end = POSES[3][0]  # the first four poses
+    for v in VARIANTS:
+        t = np.asarray(runs[v]["footprint_t"])
+        axes[1][0].plot(t[t < end], np.asarray(runs[v]["footprint_area"])[t < end], label=v)
+        t = np.asarray(runs[v]["t"])
+        axes[1][1].plot(t[t < end], np.asarray(runs[v]["dexterity_distance"])[t < end], label=v)
+        axes[1][2].semilogy(runs[v]["footprint_t"], runs[v]["arm_sigma_min"], label=v)
+    for ax, label in zip(axes[1], ("footprint [m²]", "||q_a − q_dex|| [rad]",
+                                   "σ_min of J_a [-]"), strict=True):
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(label)
+        ax.grid(True)
+        ax.legend(fontsize=7)
+    fig.suptitle("Footprint and posture (Fig. 5): the travel to the first pose, the first four "
+                 "poses, the arm's conditioning")
+    names.append(save_figure(fig, out_dir / "sorour_footprint.png"))
     fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     for v in VARIANTS[1:]:
         axes[0].plot(runs[v]["t"], runs[v]["pose_error_norm"], label=v)
@@ -479,7 +564,14 @@ the end tip starts at Table II's initial pose (base at the origin, from q_dex). 
 parameters; the pose task is eq. 12's `λ_p ᵇT_w e_p` on the analytic RPY Jacobian
 (`wbc.tasks.RpyPoseTask`, rows `ᵇT_w M_RPY J_w`: an exact first-order loop), ψ from eq. 11
 with eq. 10 read as a mobility (erratum: ψ = 1 moves the arm only), the dexterous posture in
-the exact weighted null-space form. No joint limits (the paper's formulation has none).
+the exact weighted null-space form. The arm has the KUKA LWR 4+'s joint limits, which the
+paper's formulation lacks (positions ±170° / ±120°, velocities 110–204 °/s:
+`wbc.robots.kuka_lwr4`), as hard bounds of every level (position limits approached with gain
+0.5) and as the saturation of the compensated command. The IK start has joints 1 and 3 at 221°
+and 212°, beyond ±170°: the arm starts a turn lower, at the same pose; the posture error
+`q_a − q_dex` is taken within the limits (not wrapped: the wrapped error would drive joints 1
+and 3 through their limits). Eq. 14 uses the damped pseudo-inverse with μ = ρ = 0.001 (Table I;
+§II: the damped pseudo-inverse "for redundancy resolution in the sequel").
 
 **Base.** The commanded base twist goes through Sorour's steering controller
 (`wbc.papers.sorour.steering`): ICR of the twist, direct or complementary route (±X of the
@@ -497,6 +589,25 @@ sheet values available offline).
 claims' notes. The paper gives its per-pose areas only in a figure (not in the text): we
 compare the variants with each other, not with the paper's numbers.
 """
+
+
+def arm_summary(runs: dict) -> str:
+    """The arm's commanded rates, conditioning and joint range per variant (markdown)."""
+    rows = []
+    for v in VARIANTS:
+        s = runs[v]
+        sigma = np.asarray(s["arm_sigma_min"])
+        low, high = (np.asarray(b) for b in s["arm_q_range"])
+        rows.append(f"| {v} | {max(s['arm_rate_max']):.3g} | {sigma.min():.3g} at "
+                    f"{s['footprint_t'][int(np.argmin(sigma))]:.1f} s | "
+                    + ", ".join(f"[{a:.2f}, {b:.2f}]" for a, b in zip(low, high, strict=True))
+                    + " |")
+    return "\n".join([
+        "", "**Arm.** Largest commanded arm rate, smallest singular value of J_a (eq. 14's "
+        "arm Jacobian, sampled every 0.1 s) and each arm joint's range over the run:", "",
+        "| variant | largest arm rate [rad/s] | min σ(J_a) | joint ranges [rad] |",
+        "|---|---:|---|---|",
+        *rows, ""])
 
 
 def plant_summary(runs: dict) -> str:
@@ -530,10 +641,7 @@ def plant_summary(runs: dict) -> str:
         "paper's controller are then consistent with the wheels, and slip comes from dynamics "
         "(servo lag, inertia, load transfer), not from a geometric mismatch. "
         "The steering controller keeps its own steering angles (it has no input for measured "
-        "ones). The plant's arm joints have the LWR's limits, which the paper's formulation "
-        "lacks: the IK start has joints 1 and 3 at 221° and 212°, beyond ±170°, so on MuJoCo "
-        "they start a turn lower, at the same pose (the dexterity distance to q_dex is measured "
-        "from there). Since the claims use the true pose and the controller converges on its "
+        "ones). Since the claims use the true pose and the controller converges on its "
         "odometry, the odometry drift (slip while turning, above all the heading) shows as "
         "steady pose error, and the position error can stay above r_fm (ψ < 1).", "",
         "| variant | mean slip [mm/s] | max slip [mm/s] | final odometry error [mm] | "
@@ -551,8 +659,7 @@ def run(backend: str, out_dir: Path, quick: bool,
     initial_pose, poses, base_start = staging(options.seed)
     q0 = initial_configuration(robot, initial_pose)
     q0[:3] += base_start
-    if options.plant == "mujoco":
-        q0 = within_joint_limits(robot, q0)
+    q0 = within_joint_limits(robot, q0)
     seconds = 10.0 if quick else DURATION
     runs, states, simulated_runs = {}, [], []
     replays: dict[str, Recording] = {}
@@ -569,7 +676,8 @@ def run(backend: str, out_dir: Path, quick: bool,
             every = max(1, len(simulated.t) // 200)
             states = [(q, target_at(t, poses)) for q, t in zip(simulated.q[::every],
                                                                simulated.t[::every], strict=True)]
-    summary = SUMMARY + (plant_summary(runs) if options.plant == "mujoco" else "")
+    summary = SUMMARY + arm_summary(runs) + (
+        plant_summary(runs) if options.plant == "mujoco" else "")
     timings: dict = {}
     failures: list[str] = []
     names: list[str] = []

@@ -29,11 +29,13 @@ from .closed_form import (
     task_sharing_velocity,
 )
 from .controller import (
+    LIMIT_GAIN,
     N_BASE,
     PARAMETERS,
     Q_DEX,
     VARIANTS,
     SorourController,
+    arm_rate_bounds,
     steering_controller,
 )
 from .steering import (
@@ -57,6 +59,7 @@ from .task_sharing import (
 __all__ = [
     "ArmCompensation",
     "DexterousPosture",
+    "LIMIT_GAIN",
     "MPO700_STEER_LIMITS",
     "N_BASE",
     "PARAMETERS",
@@ -67,6 +70,7 @@ __all__ = [
     "SteerableDrive",
     "VARIANTS",
     "arm_compensation",
+    "arm_rate_bounds",
     "drive_rates",
     "fast_path_allowed",
     "icr_of_twist",

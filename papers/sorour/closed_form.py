@@ -7,7 +7,8 @@
   Fig. 2. We read ``diag((1 − ψ) I, ψ I)`` as the mobility ``W⁻¹``: ψ = 1 moves the arm only,
   ψ = 0 the base only, and both extremes are singular (a zero mobility pins those joints).
 * :func:`task_sharing_velocity` — eq. 9: ``M Jᵀ(J M Jᵀ + ρ²I)⁻¹ v + λ(I − J⁺J) z``.
-* :func:`arm_compensation` — eq. 14's correction ``J_arm⁺ J_base (q̇_b,ref − q̇_b,feasible)``.
+* :func:`arm_compensation` — eq. 14's correction ``J_arm^# J_base (q̇_b,ref − q̇_b,feasible)``
+  (``J_arm^#`` damped by μ; the pseudo-inverse for μ = 0).
 
 They are the oracles of the QP forms in :mod:`wbc.papers.sorour.task_sharing` and usable as
 controllers.
@@ -20,8 +21,8 @@ import numpy as np
 from wbc.checks import checked_2d, checked_scalar, checked_vector
 from wbc.errors import InvalidValueError, NonFiniteError, ShapeError
 from wbc.solvers.linalg import (
+    damped_pinv,
     nullspace_projector,
-    pinv,
     weighted_damped_pinv,
 )
 
@@ -97,9 +98,10 @@ def task_sharing_velocity(J, v, psi: float, rho: float, n_base: int, lam: float 
     return qd
 
 
-def arm_compensation(J_arm, J_base, qd_base_ref, qd_base_feasible) -> np.ndarray:
+def arm_compensation(J_arm, J_base, qd_base_ref, qd_base_feasible,
+                     damping: float = 0.0) -> np.ndarray:
     """Sorour eq. 14's correction of the arm's joint velocities,
-    ``J_arm⁺ J_base (q̇_b,ref − q̇_b,feasible)``: the arm makes up for the end-tip velocity the
+    ``J_arm^# J_base (q̇_b,ref − q̇_b,feasible)``: the arm makes up for the end-tip velocity the
     base will miss when it moves at its feasible velocity instead of the reference.
 
     Args:
@@ -107,10 +109,11 @@ def arm_compensation(J_arm, J_base, qd_base_ref, qd_base_feasible) -> np.ndarray
         J_base: ``(m, n_base)`` base columns of the task Jacobian (``M_RPY H J_b``).
         qd_base_ref: ``(n_base,)`` base velocity the redundancy resolution asked for.
         qd_base_feasible: ``(n_base,)`` base velocity the base's controller will produce.
+        damping: μ >= 0 of ``J_arm^# = J_armᵀ (J_arm J_armᵀ + μ² I)⁻¹``.
 
     Returns:
-        ``Δq̇_arm`` of shape ``(n_arm,)``, to add to the arm's reference (Moore–Penrose
-        pseudo-inverse: the least-squares, minimum-norm correction when ``J_arm`` is
+        ``Δq̇_arm`` of shape ``(n_arm,)``, to add to the arm's reference (μ = 0: the Moore–Penrose
+        pseudo-inverse, the least-squares, minimum-norm correction when ``J_arm`` is
         rank-deficient).
     """
     J_arm = checked_2d(J_arm, "J_arm")
@@ -121,4 +124,7 @@ def arm_compensation(J_arm, J_base, qd_base_ref, qd_base_feasible) -> np.ndarray
     nb = J_base.shape[1]
     missed = (checked_vector(qd_base_ref, nb, "qd_base_ref", broadcast=False)
               - checked_vector(qd_base_feasible, nb, "qd_base_feasible", broadcast=False))
-    return pinv(J_arm) @ (J_base @ missed)
+    damping = checked_scalar(damping, "damping")
+    if damping < 0.0:
+        raise InvalidValueError(f"damping must be >= 0, got {damping}")
+    return damped_pinv(J_arm, damping) @ (J_base @ missed)

@@ -18,14 +18,30 @@ base reference scaled into the twist limits, the steering controller's tick with
 (:func:`tail_function`) on the fast path. Eq. 14's QP (a least-squares level, then the
 minimum-norm level) is ``Δq̇_a = J_a⁺ J_b (q̇_b,ref − q̇_bf)``; with ``J_a`` (6 × 7) of full row
 rank that is ``J_aᵀ (J_a J_aᵀ)⁻¹ J_b (q̇_b,ref − q̇_bf)``, solved there by a Cholesky
-factorisation. The QP is not that exact where ``J_a`` is nearly singular (daqp's proximal
-iterations on its singular level; measured on 3000 random configurations of the LWR with random
-base twists: at most 1.7e-9 from the pseudo-inverse where ``σ_min/σ_max >= 1e-2``, 6.5e-8
-between 3e-3 and 1e-2, 2.2e-3 below 1e-4), so the closed form answers only when ``1 / (tr(M)
-tr(M⁻¹)) >=`` :data:`COMPENSATION_CONDITION` (``M = J_a J_aᵀ``: a lower bound of ``λ_min/λ_max``,
-so ``σ_min/σ_max >= 1e-2``). A tick the generated code does not answer (that, or a steering tick
-it leaves to the ordinary path) runs the ordinary path's steps after the stack; ``fused=False``
-runs them every tick (numpy, pinocchio and the Python daqp backend).
+factorisation.
+
+Eq. 14 is damped (``compensation_damping`` μ, default Table I's ρ: the paper uses "the damped
+pseudo-inverse of the analytic Jacobian for redundancy resolution in the sequel"): ``Δq̇_a =
+J_aᵀ (J_a J_aᵀ + μ² I)⁻¹ J_b (q̇_b,ref − q̇_bf)``, the minimiser of ``||J_a x − r||² + μ²||x||²``.
+Undamped (μ = 0), near a singular ``J_a`` it commanded the arm up to 270 rad/s in the study's
+compensated run. The QP (daqp) is not that exact where ``M = J_a J_aᵀ + μ² I`` is ill
+conditioned (measured on 1500 random configurations of the LWR, a third of them near its elbow
+or wrist singularity, random base twists, μ = 1e-3: at most 8.0e-9 from the closed form where
+``1 / (tr(M) tr(M⁻¹)) >= 1e-4``, 6.4e-8 between 1e-6 and 1e-4, 9.0e-7 between 1e-8 and 1e-6;
+μ = 1e-4: 5.4e-5 between 1e-6 and 1e-4), so the generated form answers only when ``1 / (tr(M)
+tr(M⁻¹)) >=`` :data:`COMPENSATION_CONDITION` (a lower bound of ``λ_min/λ_max``).
+
+Joint limits (the paper's formulation has none; the LWR-IV has them, :mod:`wbc.robots.kuka_lwr4`):
+the stack holds the arm's position limits (:class:`~wbc.tasks.ConfigurationLimit`, gain
+:data:`LIMIT_GAIN`) and velocity limits as hard bounds on every level; the base's velocity stays
+unbounded there (its reference is scaled into the base's twist limits after the stack, as
+before). Eq. 14 adds its correction after the stack, so the compensated command is saturated
+per joint into the same bounds (:func:`arm_rate_bounds`): what a velocity-commanded joint drive
+does with a rate beyond its limit.
+
+A tick the generated code does not answer (that, or a steering tick it leaves to the ordinary
+path) runs the ordinary path's steps after the stack; ``fused=False`` runs them every tick
+(numpy, pinocchio and the Python daqp backend).
 """
 
 from __future__ import annotations
@@ -38,7 +54,8 @@ import numpy as np
 
 import wbc
 from wbc.cbuild import compiled_c
-from wbc.tasks import RpyPoseTask
+from wbc.checks import checked_number
+from wbc.tasks import Bounds, ConfigurationLimit, RpyPoseTask
 from wbc.tasks.rpy_pose import pose_error, rpy_jacobian
 
 from .closed_form import task_sharing_factor
@@ -46,8 +63,8 @@ from .steering import MPO700_STEER_LIMITS, SteerableController, scale_into
 from .steering_code import fast_path_allowed, steering_function
 from .task_sharing import ArmCompensation, DexterousPosture, share_task, sharing_factor
 
-__all__ = ["N_BASE", "PARAMETERS", "Q_DEX", "SorourController", "VARIANTS",
-           "steering_controller"]
+__all__ = ["LIMIT_GAIN", "N_BASE", "PARAMETERS", "Q_DEX", "SorourController", "VARIANTS",
+           "arm_rate_bounds", "steering_controller"]
 
 #: Table I (``ts`` the control period [s]; lengths [m]; gains [1/s]).
 PARAMETERS = {"lambda_p": 1.7, "lambda_dex": 3.5, "rho": 0.001, "ts": 0.025, "Kp": 2.0,
@@ -60,9 +77,26 @@ Q_DEX = np.array([math.pi / 2, math.pi / 2, math.pi / 2, -math.pi / 2, 0.0, 0.0,
 VARIANTS = ("pinv", "proposed", "compensated")
 #: the base's velocity coordinates ``(v_x, v_y, ω)``
 N_BASE = 3
-#: The generated eq. 14 answers when ``1 / (tr(M) tr(M⁻¹))``, ``M = J_a J_aᵀ``, is at least
-#: this (``σ_min/σ_max >= 1e-2`` of ``J_a``; see the module docstring).
-COMPENSATION_CONDITION = 1e-4
+#: The generated eq. 14 answers when ``1 / (tr(M) tr(M⁻¹))``, ``M = J_a J_aᵀ + μ² I``, is at
+#: least this (see the module docstring).
+COMPENSATION_CONDITION = 1e-6
+#: Gain of the arm's position limits at the velocity level (:class:`~wbc.tasks.ConfigurationLimit`:
+#: a joint may close half its distance to a limit per tick; pink's default, not from the paper).
+LIMIT_GAIN = 0.5
+
+
+def arm_rate_bounds(robot) -> ca.Function:
+    """``q -> (lower, upper)`` [rad/s]: the arm joints' rates allowed this tick, the LWR's
+    velocity limits within :data:`LIMIT_GAIN` ``· (q_limit − q) / t_s`` (the bounds the stack
+    holds; eq. 14's compensated command is saturated into them)."""
+    limits, n_arm = robot.limits, int(robot.nv) - N_BASE
+    q = ca.SX.sym("q", int(robot.nq))
+    q_arm, dt = q[-n_arm:], PARAMETERS["ts"]
+    lower = ca.fmax(ca.DM(limits.v_lower[N_BASE:]),
+                    LIMIT_GAIN * (ca.DM(limits.q_lower[-n_arm:]) - q_arm) / dt)
+    upper = ca.fmin(ca.DM(limits.v_upper[N_BASE:]),
+                    LIMIT_GAIN * (ca.DM(limits.q_upper[-n_arm:]) - q_arm) / dt)
+    return ca.Function("sorour_arm_rate_bounds", [q], [lower, upper], ["q"], ["lower", "upper"])
 
 
 class SorourController:
@@ -75,9 +109,11 @@ class SorourController:
         fused: the fast path of the steps after the stack (module docstring): ``"auto"``
             (default) where it applies (daqp, a C compiler), ``True`` required (else an
             error), ``False`` off — passed on to the steering controller. The stack is on
-            :class:`wbc.Controller`'s default path either way (fused on daqp): ``False`` is
-            this controller as it was before the fast path, the path whose runs the study
-            documents.
+            :class:`wbc.Controller`'s default path either way (fused on daqp).
+        compensation_damping: μ of eq. 14 (``>= 0``; default Table I's ρ, see the module
+            docstring).
+        qp_options: backend options of the stack's and eq. 14's QPs (e.g. daqp's
+            ``{"primal_tol": 1e-6}``); none by default.
 
     Attributes:
         psi: ψ of the last tick (eq. 11; ``nan`` for ``pinv``, which shares nothing).
@@ -92,13 +128,17 @@ class SorourController:
     """
 
     def __init__(self, robot, variant: str, backend: str = "daqp",
-                 fused: bool | str = "auto") -> None:
+                 fused: bool | str = "auto", compensation_damping: float = PARAMETERS["rho"],
+                 qp_options: dict | None = None) -> None:
         if variant not in VARIANTS:
             raise wbc.UnknownNameError(f"unknown variant {variant!r}; variants are {VARIANTS}")
         if fused not in (True, False, "auto"):
             raise wbc.InvalidValueError(f"fused must be True, False or 'auto', got {fused!r}")
         p = PARAMETERS
         self.robot, self.variant = robot, variant
+        self.compensation_damping = checked_number(compensation_damping,
+                                                   "compensation_damping of SorourController")
+        options = dict(qp_options or {})
         stack = wbc.Stack(wbc.Variables(qd=robot.nv), damping={0: p["rho"]}, min_norm=False)
         pose = RpyPoseTask(robot, "ee", p["lambda_p"], name="ee")
         stack.add(pose, priority=0)
@@ -106,13 +146,21 @@ class SorourController:
             share_task(stack, sharing_factor(pose.position_error_norm, p["r_fm"], p["r_mm"]),
                        N_BASE, priority=0)
             stack.add(DexterousPosture(robot, Q_DEX, p["lambda_dex"], name="dex"), priority=1)
-        # the paper's eqs. 7-13 hold no joint limits: reproduced as printed, on purpose
+        # the LWR's limits, which the paper's eqs. 7-13 lack (module docstring); the base's
+        # velocity is left to the twist-limit scaling after the stack, as the paper's is
+        unbounded = np.full(N_BASE, np.inf)
+        stack.constrain(ConfigurationLimit(robot, LIMIT_GAIN, name="arm_position_limit"))
+        stack.constrain(Bounds(np.r_[-unbounded, robot.limits.v_lower[N_BASE:]],
+                               np.r_[unbounded, robot.limits.v_upper[N_BASE:]],
+                               name="arm_velocity_limit"))
         self.controller = wbc.Controller(robot, stack, backend=backend, dt=p["ts"],
-                                         missing_limits="ignore")
+                                         missing_limits="ignore", **options)
         self._tail = None  # the fast path's generated call, bound by _fast_path
         self.steering = steering_controller(robot, backend, fused)
-        self.compensation = (ArmCompensation(robot.nv - N_BASE, backend=backend)
+        self.compensation = (ArmCompensation(robot.nv - N_BASE, backend=backend,
+                                             damping=self.compensation_damping, **options)
                              if variant == "compensated" else None)
+        self._arm_bounds = arm_rate_bounds(robot)
         self.psi = math.nan
         self.tick_parts: dict[str, float] = {}
         self.fallback_ticks = 0
@@ -127,7 +175,8 @@ class SorourController:
         self._command, self._out = np.zeros(int(robot.nv)), np.zeros(int(robot.nv))
         self._next = np.zeros(2 * robot.base.n_wheels + 6)
         self._info = np.zeros(3)
-        function = compiled_c(tail_function(robot, self.variant == "compensated"))
+        function = compiled_c(tail_function(robot, self.variant == "compensated",
+                                            self.compensation_damping))
         self._buffer, self._tail = function.buffer()
         # (casadi's type stubs know only the (index, buffer, size) form of set_arg/set_res)
         for i, array in enumerate((self._q, self._target, self._command)):
@@ -204,16 +253,18 @@ class SorourController:
             J = rpy_jacobian(self.robot.frame_jacobian(q, "ee"), pose[:3, :3], q[2])
             command[N_BASE:] += self.compensation(J[:, N_BASE:], J[:, :N_BASE],
                                                   command[:N_BASE], predicted.twist)
+            lower, upper = (np.asarray(b).reshape(-1) for b in self._arm_bounds(q))
+            command[N_BASE:] = np.minimum(np.maximum(command[N_BASE:], lower), upper)
         self.tick_parts = {"stack": t1 - t0, "icr_qp": predicted.qp_s,
                            "compensation": clock() - t2}
         return command
 
 
-def _minimum_norm(J: ca.SX, rhs: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """``(Jᵀ (J Jᵀ)⁻¹ rhs, 1 / (tr(M) tr(M⁻¹)))`` for ``J`` of full row rank (``M = J Jᵀ``,
-    Cholesky factor ``L``; ``tr(M⁻¹) = ||L⁻¹||_F²``)."""
+def _minimum_norm(J: ca.SX, rhs: ca.SX, damping: float) -> tuple[ca.SX, ca.SX]:
+    """``(Jᵀ M⁻¹ rhs, 1 / (tr(M) tr(M⁻¹)))`` with ``M = J Jᵀ + damping² I`` (``J`` of full row
+    rank if undamped; Cholesky factor ``L``; ``tr(M⁻¹) = ||L⁻¹||_F²``)."""
     m = J.shape[0]
-    M = J @ J.T
+    M = J @ J.T + damping ** 2 * ca.SX.eye(m)
     L = [[ca.SX(0)] * m for _ in range(m)]
     for j in range(m):
         L[j][j] = ca.sqrt(M[j, j] - sum((L[j][k] ** 2 for k in range(j)), ca.SX(0)))
@@ -235,9 +286,9 @@ def _minimum_norm(J: ca.SX, rhs: ca.SX) -> tuple[ca.SX, ca.SX]:
     return J.T @ ca.vertcat(*z), 1.0 / (ca.trace(M) * inverse_norm)
 
 
-def _arm_function(robot) -> ca.Function:
+def _arm_function(robot, damping: float) -> ca.Function:
     """``(q, target, reference, feasible) -> (Δq̇_a, well_conditioned, ψ)``: eq. 14's
-    correction in closed form (``J_a`` of full row rank) and whether
+    correction damped by ``damping`` in closed form and whether
     :data:`COMPENSATION_CONDITION` holds, and eq. 11's ψ, at ``q`` (see the module docstring)."""
     nq = int(robot.nq)
     q, target = ca.SX.sym("q", nq), ca.SX.sym("target", 6)
@@ -247,7 +298,8 @@ def _arm_function(robot) -> ca.Function:
                          PARAMETERS["r_mm"])
     heading = q[2]
     J = rpy_jacobian(J_world, pose[:3, :3], heading)  # type: ignore[arg-type]  # (CasADi too)
-    correction, condition = _minimum_norm(J[:, N_BASE:], J[:, :N_BASE] @ (reference - feasible))
+    correction, condition = _minimum_norm(J[:, N_BASE:], J[:, :N_BASE] @ (reference - feasible),
+                                          damping)
     return ca.Function("sorour_arm", [q, target, reference, feasible],
                        [correction, condition >= COMPENSATION_CONDITION, psi],
                        ["q", "target", "reference", "feasible"],
@@ -262,7 +314,7 @@ def _base_reference_function(v_max) -> ca.Function:
                        [ca.if_else(ratio > 1.0, base / ratio, base)])
 
 
-def tail_function(robot, compensate: bool) -> ca.Function:
+def tail_function(robot, compensate: bool, damping: float = PARAMETERS["rho"]) -> ca.Function:
     """What :class:`SorourController`'s fast path computes after the stack, as one CasADi
     function (see the module docstring).
 
@@ -271,7 +323,8 @@ def tail_function(robot, compensate: bool) -> ca.Function:
     steering controller (:func:`~wbc.papers.sorour.steering_code.steering_function`).
 
     Outputs: ``command_out`` (nv,) the tick's command (the base's reference scaled into
-    ``robot.base.v_max``, the arm's with eq. 14's correction if ``compensate``); ``next`` the
+    ``robot.base.v_max``, the arm's with eq. 14's correction damped by ``damping`` and saturated
+    into :func:`arm_rate_bounds` if ``compensate``); ``next`` the
     steering controller's state after its tick; ``info`` ``[ok, relaxed, ψ]``. With ``ok = 0``
     the ordinary path answers (the outputs mean nothing).
     """
@@ -283,9 +336,11 @@ def tail_function(robot, compensate: bool) -> ca.Function:
                                                                                 "constants"))
     reference = _base_reference_function(robot.base.v_max)(command[:N_BASE])
     state_next, _, _, info = steering(reference, state, constants)
-    correction, well_conditioned, psi = _arm_function(robot)(
+    correction, well_conditioned, psi = _arm_function(robot, damping)(
         q, target, reference, state_next[2 * n_wheels:2 * n_wheels + 3])
-    arm = command[N_BASE:] + correction if compensate else command[N_BASE:]
+    lower, upper = arm_rate_bounds(robot)(q)
+    arm = (ca.fmin(ca.fmax(command[N_BASE:] + correction, lower), upper) if compensate
+           else command[N_BASE:])
     ok = ca.logic_and(info[0], well_conditioned) if compensate else info[0]
     return ca.Function("sorour_tail", [q, target, command, state, constants],
                        [ca.vertcat(reference, arm), state_next, ca.vertcat(ok, info[2], psi)],

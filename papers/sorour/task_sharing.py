@@ -12,8 +12,9 @@
   (``J q̇ = J q̇₁*``), whose minimiser is ``q̇₁* + λ_dex (I − J⁺J) z`` exactly. ``q̇₁*`` is
   :meth:`wbc.Stack.x_above`. (The plain form ``||q̇ − λ z||²`` would also pull ``q̇₁*``'s part
   outside the row space of ``J`` to zero, which a weighted ``J^#`` has.)
-* :class:`ArmCompensation` — eq. 14's ``Δq̇_a = J_a⁺ J_b (q̇_b,ref − q̇_bf)`` as a QP: one
-  least-squares level and the minimum-norm level (the pseudo-inverse for any rank).
+* :class:`ArmCompensation` — eq. 14's ``Δq̇_a = J_a^# J_b (q̇_b,ref − q̇_bf)`` as a QP: one
+  least-squares level damped by μ (``J_a^# = J_aᵀ (J_a J_aᵀ + μ² I)⁻¹``), or undamped with the
+  minimum-norm level below (``J_a⁺``, the pseudo-inverse for any rank).
 """
 
 from __future__ import annotations
@@ -81,7 +82,10 @@ def share_task(stack, psi, n_base: int, priority: int = 0) -> ca.SX:
 
 class DexterousPosture(Task):
     """Eq. 9's null-space term with eq. 13's ``z = [0; −(q_a − q_dex)]``, exact QP form: add it
-    one priority below the task (see the module docstring).
+    one priority below the task (see the module docstring). ``q_a − q_dex`` is not wrapped: for
+    joints whose limits span less than a turn (the LWR's ±170°, ±120°) with ``q_a`` and
+    ``q_dex`` inside them, the plain difference is the only path the joint can take (the
+    wrapped one would drive a joint through its limit, e.g. from −139° towards q_dex = 90°).
 
     Args:
         robot: the mobile manipulator (``nq``, ``nv``; the arm's coordinates are the last
@@ -116,26 +120,31 @@ class DexterousPosture(Task):
 
 
 class ArmCompensation:
-    """Eq. 14's correction ``Δq̇_a = J_a⁺ J_b (q̇_b,ref − q̇_bf)`` solved as a QP on ``backend``.
+    """Eq. 14's correction ``Δq̇_a = J_a^# J_b (q̇_b,ref − q̇_bf)`` solved as a QP on ``backend``
+    (``J_a^# = J_aᵀ (J_a J_aᵀ + μ² I)⁻¹``, the pseudo-inverse ``J_a⁺`` for μ = 0).
 
     Args:
         n_arm: arm joints (>= 1); rows: task rows (>= 1, 6 for a pose).
-        backend: QP backend; profile: its tolerance profile.
+        backend: QP backend; profile: its tolerance profile; options: the backend's options.
+        damping: μ (>= 0) [-]; 0: the least-squares level and a minimum-norm level below it.
 
     Call it with ``(J_arm, J_base, qd_base_ref, qd_base_feasible)`` (numpy) to get ``Δq̇_a``.
     """
 
     def __init__(self, n_arm: int, rows: int = 6, backend: str = "daqp",
-                 profile: str = "default") -> None:
+                 profile: str = "default", damping: float = 0.0, **options) -> None:
         n_arm = checked_integer(n_arm, "n_arm of ArmCompensation", 1)
         rows = checked_integer(rows, "rows of ArmCompensation", 1)
-        stack = wbc.Stack(wbc.Variables(dqd_arm=n_arm), min_norm=True)
+        self.damping = checked_number(damping, "damping of ArmCompensation")
+        # damped, the level is strictly convex: its minimiser is unique without a min-norm level
+        stack = wbc.Stack(wbc.Variables(dqd_arm=n_arm), damping=self.damping,
+                          min_norm=self.damping == 0.0)
         x = stack.variables.symbol
         J = stack.parameter("J_arm", (rows, n_arm), np.zeros((rows, n_arm)))
         missed = stack.parameter("missed", rows, np.zeros(rows))
         stack.add(Cost(J @ x, missed, 1.0, "compensation"))
         self.stack = stack
-        self.workspace = stack.workspace(backend, profile)
+        self.workspace = stack.workspace(backend, profile, **options)
         self._J, self._missed = self.workspace.view("J_arm"), self.workspace.view("missed")
         self.last_solution = None
 
