@@ -45,7 +45,7 @@ from pathlib import Path
 from .campaigns.sweep import interval, seeds_held
 from .machine import describe_machine
 from .progress import report_progress
-from .studies.study import cell, verdict_cell
+from .studies.study import VERDICTS, cell, verdict_cell
 
 PAPERS = {"sorour": "Sorour, Cherubini, Fraisse — steerable wheeled mobile manipulation",
           "petric": "Petrič, Žlajpah — spatially modulated velocity fields",
@@ -216,6 +216,13 @@ def _read_json(path: Path) -> dict | None:
         return None
 
 
+def _not_reproducible(claims: list[dict]) -> str:
+    """``"; k not reproducible with this model"`` for a claims list with k such verdicts, or
+    ``""``."""
+    k = sum(c.get("verdict") == VERDICTS[2] for c in claims)
+    return f"; {k} not reproducible with this model" if k else ""
+
+
 def _paper_section(name: str, out: Path, steps: dict[str, Step]
                    ) -> tuple[list[str], list[str]]:
     """A paper's section and its summary line: its claims on the kinematic plant, on MuJoCo
@@ -236,16 +243,21 @@ def _paper_section(name: str, out: Path, steps: dict[str, Step]
         if sweep_step is not None and sweep_step.status in ("ok", "failed") else None
     claims = data["claims"]
     held = sum(bool(c["holds"]) for c in claims)
-    summary = f"- **{name}**: {held} of {len(claims)} claims reproduced (kinematic plant)"
+    unreachable = _not_reproducible(claims)
+    summary = (f"- **{name}**: {held} of {len(claims)} claims reproduced (kinematic plant"
+               f"{unreachable})")
     lines.append(f"{held} of {len(claims)} claims reproduced on the kinematic plant "
-                 f"({step.seconds:.0f} s).")
+                 f"({step.seconds:.0f} s{unreachable}).")
     by_id_physics = {c["id"]: c for c in (physics or {}).get("claims", [])}
     by_id_sweep = {c["id"]: c for c in (swept or {}).get("claims", [])}
     if physics is not None and physics_step is not None:
         held_physics = sum(bool(c["holds"]) for c in physics["claims"])
-        summary += f"; {held_physics} of {len(physics['claims'])} on MuJoCo"
+        unreachable = _not_reproducible(physics["claims"])
+        summary += (f"; {held_physics} of {len(physics['claims'])} on MuJoCo"
+                    + (f" ({unreachable[2:]})" if unreachable else ""))
         lines.append(f"On MuJoCo: {held_physics} of {len(physics['claims'])} "
-                     f"({physics_step.seconds:.0f} s; {_plant_line(physics)}; what the plant "
+                     f"({physics_step.seconds:.0f} s{unreachable}; {_plant_line(physics)}; "
+                     "what the plant "
                      f"changes and why: [mujoco/{name}/{name}.md](mujoco/{name}/{name}.md))"
                      + ("; it ran beside another MuJoCo study, one per core, so its timing "
                         "claims (ticks timed on the kinematic plant) are the kinematic "
