@@ -28,12 +28,16 @@ the exact optimum (measured on the study's 65 s runs: 3 ticks of 7800), and whic
 its warm start. The closed form therefore answers only when no such candidate exists farther
 than :data:`AMBIGUITY` from the optimum (violations up to :data:`DAQP_TOL` counted, twice daqp's
 tolerance, in daqp's unit-row measure), and when no wheel's acceleration row lies within
-:data:`NEAR_ANGLE` of its rate row without being it (daqp may then take either). Measured on the
-study's 65 s runs (:class:`~wbc.papers.sorour.SorourController`'s fast path against its
-ordinary path, 7800 ticks, each replayed with both paths' QPs started cold, see
-``tests/test_sorour_fast.py``): commands and steering states within 7.4e-10, 83 ticks handed to
-the ordinary path (these near-ties and relaxed ticks, and eq. 14 at ill-conditioned arm
-configurations); on 5000 random states within 3.3e-9.
+:data:`NEAR_ANGLE` of its rate row without being it (daqp may then take either). Such a tick's
+answer depends on the ordinary path's warm start: on one of the quick study's timing states two
+ordinary paths, one started after the tick before, the other cold, end 1.06e-6 apart in ``u``,
+2.3e-5 rad/s in a β̇ (``tests/test_sorour_fast.py``). Measured on the study's 65 s runs
+(:class:`~wbc.papers.sorour.SorourController`'s fast path against its ordinary path, 7800 ticks,
+each replayed with both paths' QPs started cold): commands and steering states within 4.6e-9,
+144 ticks handed to the ordinary path — 58 by this function (21 ambiguous, 23 near angles or
+inverted cones, 14 whose try's rows have no common point), 86 by eq. 14 at ill-conditioned arm
+configurations; on 5000 random states of ``tests/test_sorour_fast.py`` steering states within
+1.2e-9.
 
 The cascade's other branches: when the sixteen rows facing the reference have no common point,
 the ordinary path either relaxes the acceleration cones (the rate rows have a common point: level
