@@ -697,8 +697,12 @@ def run(backend: str, out_dir: Path, quick: bool,
                 f"the ordinary path (`fused=False`) {1e6 * t['ordinary_tick_median_s']:.1f} µs "
                 f"(p95 {1e6 * t['ordinary_tick_p95_s']:.1f}): "
                 f"{t['tick_median_s'] / t['ordinary_tick_median_s']:.2f}×; commands at most "
-                f"{t['max_command_difference']:.1e} apart. The runs above use the ordinary "
-                "path (see the study's docstring).\n")
+                f"{t['max_command_difference']:.1e} apart (each controller carries its "
+                "steering state and warm starts through the replay: on a near-tie the fast "
+                "path hands over, and the two ordinary daqp solves, warm-started from "
+                "different histories, may stop on different vertices within daqp's tolerance — "
+                "tests/test_sorour_fast.py compares tick by tick from cold starts). The runs "
+                "above use the ordinary path (see the study's docstring).\n")
         names = figures(runs, Path(out_dir))
     return StudyResult(
         name="sorour", claims=claims(runs, parameters), runs={"table_ii": runs},
