@@ -42,37 +42,39 @@ def _scale_intervals(a, b, lo, up):
 
     Returns ``(s_min, s_max)``; an empty interval is ``(+inf, -inf)``.
     """
-    s_min = np.full(a.shape, -np.inf)
-    s_max = np.full(a.shape, np.inf)
-    pos, neg, zero = a > 0, a < 0, a == 0
-    with np.errstate(invalid="ignore", over="ignore"):
-        s_min[pos] = (lo[pos] - b[pos]) / a[pos]
-        s_max[pos] = (up[pos] - b[pos]) / a[pos]
-        s_min[neg] = (up[neg] - b[neg]) / a[neg]
-        s_max[neg] = (lo[neg] - b[neg]) / a[neg]
-    # a_i = 0: the joint does not depend on s; either always or never within its bounds.
-    out = zero & ((b < lo) | (b > up))
-    s_min[out], s_max[out] = np.inf, -np.inf
+    # both quotients on every joint, picked by the sign of a_i (fewer numpy calls than masked
+    # assignments, the same IEEE operations on the joints that use them)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        to_lo = (lo - b) / a
+        to_up = (up - b) / a
+    pos = a > 0
+    s_min, s_max = np.where(pos, to_lo, to_up), np.where(pos, to_up, to_lo)
+    zero = a == 0
+    if zero.any():  # the joint does not depend on s; either always or never within its bounds
+        out = zero & ((b < lo) | (b > up))
+        inside = zero & ~out
+        s_min[inside], s_max[inside] = -np.inf, np.inf
+        s_min[out], s_max[out] = np.inf, -np.inf
     return s_min, s_max
 
 
-def _sns(J, task, offset, lower, upper, tol, rtol, feas_tol):
-    r"""SNS core for ``J q = s·task + offset``, ``lower <= q <= upper``.
+def _sns(J, task, offset, lower, upper, tol, rtol, feas_tol, svd=None):
+    r"""SNS core for ``J q = s·task + offset``, ``lower <= q <= upper``; ``svd``: ``J``'s
+    ``(U, s, Vt)`` as :func:`~wbc.solvers.linalg._svd` gives it, if the caller has it.
 
     Returns ``(q, s, saturated, iterations)`` or ``(None, None, saturated, iterations)`` when no
     scale in [0, 1] was found.
     """
     m, n = J.shape
-    U, sv, Vt = _svd(J)
+    U, sv, Vt = _svd(J) if svd is None else svd
     smax = sv[0] if sv.size else 0.0
     cutoff = _cutoff(smax, J.shape, tol, DERIVED_RTOL if rtol is None else rtol)
     rank_J = int(np.count_nonzero(sv > cutoff))
 
     if feas_tol is None:
-        finite = np.abs(np.concatenate([lower, upper]))
-        finite = finite[np.isfinite(finite)]
-        mag = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
-        feas_tol = 1e-10 * mag
+        bounds = np.abs(np.concatenate([lower, upper]))
+        mag = float(np.max(bounds, where=np.isfinite(bounds), initial=0.0))
+        feas_tol = 1e-10 * (mag if mag > 0 else 1.0)
     # Round-off must not make a joint that sits on its bound look violated, so feasibility and
     # scale intervals are judged against bounds widened by feas_tol; the result is clipped.
     lo_b, up_b = lower - feas_tol, upper + feas_tol
@@ -98,11 +100,15 @@ def _sns(J, task, offset, lower, upper, tol, rtol, feas_tol):
         # q(s) = s·a + b: the minimum-norm motion of the free joints that achieves the scaled
         # task given the saturated joints' contribution J q_sat (the paper's
         # q̇ = q̇_N + (J W)^# (s ẋ − J q̇_N) with W the selection of free joints).
-        a = np.zeros(n)
-        b = q_sat.copy()
-        a[idx] = P @ task
-        b[idx] = P @ (offset - J @ q_sat)
-        s_min, s_max = _scale_intervals(a[idx], b[idx], lo_b[idx], up_b[idx])
+        if it == 1:  # every joint free, none saturated (q_sat = 0)
+            a, b = P @ task, P @ offset
+            s_min, s_max = _scale_intervals(a, b, lo_b, up_b)
+        else:
+            a = np.zeros(n)
+            b = q_sat.copy()
+            a[idx] = P @ task
+            b[idx] = P @ (offset - J @ q_sat)
+            s_min, s_max = _scale_intervals(a[idx], b[idx], lo_b[idx], up_b[idx])
         violated = (s_min > 1.0) | (s_max < 1.0)
         if not violated.any():
             # The unscaled task is feasible with the current saturation set: done, s = 1.

@@ -46,7 +46,7 @@ import numpy as np
 
 from wbc.checks import checked_2d, checked_bounds, checked_vector
 from wbc.errors import InvalidValueError, ShapeError
-from wbc.solvers.linalg import pinv
+from wbc.solvers.linalg import _svd, pinv
 from wbc.solvers.sns import _scale_intervals, _sns
 
 __all__ = [
@@ -110,9 +110,10 @@ def scaling_factor(demand, offset, lower, upper) -> float:
     demand, offset = np.asarray(demand, float), np.asarray(offset, float)
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     s_min, s_max = _scale_intervals(demand, offset, lower, upper)
-    if np.any(s_min > 1e-12) or np.any(s_max < -1e-12):  # round-off on a bound is no violation
-        return 0.0
-    return float(np.clip(s_max.min(initial=np.inf), 0.0, 1.0))
+    largest = float(s_max.min(initial=np.inf))
+    if s_min.max(initial=-np.inf) > 1e-12 or largest < -1e-12:  # round-off on a bound is no
+        return 0.0  # violation
+    return min(max(largest, 0.0), 1.0)
 
 
 def auxiliary_projector(J, free) -> np.ndarray:
@@ -253,20 +254,28 @@ def amp(J, xdd, drift, lower, upper, n_base: int, *, qdd_sa=None, transition=Non
     lower, upper = checked_bounds(lower, upper, n, "bounds")
     if not 0 <= n_base < n:
         raise ShapeError(f"n_base must be in 0..{n - 1}, got {n_base}")
-    base = slice(0, n_base)
     qdd_sa = np.zeros(n) if qdd_sa is None else checked_vector(qdd_sa, n, "qdd_sa", broadcast=False)
     transition = (np.zeros(n_base) if transition is None
                   else checked_vector(transition, n_base, "transition", broadcast=False))
+    return _amp(J, xdd, drift, lower, upper, n_base, qdd_sa, transition, sigma_min, sigma_thr)
 
+
+def _amp(J, xdd, drift, lower, upper, n_base, qdd_sa, transition, sigma_min, sigma_thr):
+    """:func:`amp` on arguments it has checked (float arrays of the right shapes, finite,
+    ``lower <= upper``, ``0 <= n_base < n``; ``qdd_sa`` and ``transition`` arrays): for
+    callers that guarantee as much themselves."""
+    n = J.shape[1]
+    base = slice(0, n_base)
     qdd = None
     if sigma_min >= sigma_thr:  # the arm alone, the base at its transition value
         arm = slice(n_base, n)
-        q_arm, alpha, saturated, _ = _sns(J[:, arm], xdd, -drift - J[:, base] @ transition,
-                                          lower[arm], upper[arm], None, None, None)
+        J_arm = J[:, arm]
+        svd = _svd(J_arm)  # SNS's first pseudo-inverse, the rank test's and P_A's
+        q_arm, alpha, saturated, _ = _sns(J_arm, xdd, -drift - J[:, base] @ transition,
+                                          lower[arm], upper[arm], None, None, None, svd)
         # "rank(JS) < r": an arm that cannot span the task's directions fails however SNS
         # ends (SNS itself only compares against the rank of the columns it was given)
-        spans = np.linalg.matrix_rank(J[:, arm]) == np.linalg.matrix_rank(J)
-        if spans and q_arm is not None and alpha == 1.0:
+        if q_arm is not None and alpha == 1.0 and _spans(J, J_arm, svd[1]):
             qdd = np.concatenate([transition, np.clip(q_arm, lower[arm], upper[arm])])
             free = np.ones(n, dtype=bool)
             free[base] = False
@@ -277,14 +286,68 @@ def amp(J, xdd, drift, lower, upper, n_base: int, *, qdd_sa=None, transition=Non
     else:
         reason = "singularity"
     if qdd is None:  # the base enabled: SNS again over every joint
-        qdd, alpha, saturated, _ = _sns(J, xdd, -drift, lower, upper, None, None, None)
+        svd = _svd(J)
+        qdd, alpha, saturated, _ = _sns(J, xdd, -drift, lower, upper, None, None, None, svd)
         if qdd is None:  # no scale in [0, 1]: the bounds cannot even absorb the drift
             qdd, alpha, saturated = np.clip(np.zeros(n), lower, upper), 0.0, []
         qdd = np.clip(qdd, lower, upper)
         free = np.ones(n, dtype=bool)
         free[list(saturated)] = False
-    tertiary = auxiliary_projector(J, free) @ qdd_sa
-    tertiary[~free] = 0.0  # exactly: P_A's rows of still joints are zero up to round-off
+    # svd is that of J[:, free] when SNS saturated nothing
+    tertiary = _tertiary(J, free, qdd_sa, qdd, lower, upper, None if saturated else svd)
     beta = scaling_factor(tertiary, qdd, lower, upper)
     info = AMPInfo(float(alpha), beta, reason != "arm", reason, free)
     return qdd + beta * tertiary, info
+
+
+def _spans(J, J_arm, s_arm) -> bool:
+    """``rank(J_arm) == rank(J)`` as :func:`numpy.linalg.matrix_rank` decides it, given
+    ``s_arm``, the singular values of ``J_arm`` (columns of ``J``).
+
+    Where ``σ_r(J_arm)`` (``r`` = rows) is far above both rank tolerances (``max(r, m)·eps``
+    times ``σ_max``) the answer is certain without ``J``'s SVD: both ranks are ``r``
+    (``σ_r(J) >= σ_r(J_arm)`` for a column subset, ``σ_max(J) <= ‖J‖_F``). Otherwise it is
+    decided as ever, by two ``matrix_rank`` calls."""
+    if s_arm.size == J.shape[0] and s_arm.min(initial=np.inf) > 1e-8 * np.linalg.norm(J):
+        return True
+    return bool(np.linalg.matrix_rank(J_arm) == np.linalg.matrix_rank(J))
+
+
+def _tertiary(J, free, qdd_sa, qdd, lower, upper, svd=None) -> np.ndarray:
+    """``P_A q̈_sa`` of eq. (10) with exact zeros on the still joints (``free`` False), for the
+    command ``qdd`` (within ``[lower, upper]`` on the free joints) that β will scale it from.
+
+    ``P_A`` is the orthogonal projector onto ``null(J) ∩ {q̈_i = 0 where not free}`` (module
+    docstring), i.e. ``I − J_F⁺ J_F`` on the free joints ``F`` and 0 elsewhere. That form —
+    ``q̈_sa,F − V Vᵀ q̈_sa,F`` with ``V`` the right singular vectors of ``J_F``, whose SVD the
+    caller may pass in ``svd`` — is used where it agrees with :func:`auxiliary_projector` to
+    round-off and β with it:
+
+    * ``J_F`` has full row rank ``r`` with ``σ_r(J_F) > max(1e-4 ‖J‖_F, 1e-6)``. Then ``J``
+      keeps all ``r`` singular values in ``pinv(J)`` and ``(I − S) P_N`` has full row rank with
+      ``σ_min >= σ_r(J_F) / (2‖J‖_F)`` (a unit ``u`` on the still joints is at least that far
+      from ``range(Jᵀ)``): neither pseudo-inverse sits near its cutoff or amplifies round-off
+      by more than ``2·10⁴``.
+    * No free joint could limit β on round-off alone: none has a small ``|t_j| < 1e-4
+      ‖q̈_sa‖_∞`` and a margin to a bound ``<= |t_j| + 1e-12 ‖q̈_sa‖_∞`` (e.g. a joint on its
+      bound whose exact ``t_j`` is 0: the sign of the round-off decides β = 0 or not).
+
+    Otherwise eq. (10) as printed (:func:`auxiliary_projector`), rounding as it always did.
+    """
+    _, s, Vt = _svd(J[:, free]) if svd is None else svd
+    if s.size == J.shape[0] and s.min(initial=np.inf) > max(1e-4 * np.linalg.norm(J), 1e-6):
+        x = qdd_sa[free]
+        t = x - Vt.T @ (Vt @ x)
+        scale = np.abs(qdd_sa).max(initial=0.0)
+        small = np.abs(t) < 1e-4 * scale
+        if small.any():  # are they on or near a bound?
+            q, t_small = qdd[free][small], np.abs(t[small])
+            margin = np.minimum(upper[free][small] - q, q - lower[free][small])
+            small = margin <= t_small + 1e-12 * scale
+        if not small.any():
+            tertiary = np.zeros(J.shape[1])
+            tertiary[free] = t
+            return tertiary
+    tertiary = auxiliary_projector(J, free) @ qdd_sa
+    tertiary[~free] = 0.0  # exactly: P_A's rows of still joints are zero up to round-off
+    return tertiary
