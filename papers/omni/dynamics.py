@@ -64,6 +64,8 @@ from wbc.errors import InvalidValueError, ShapeError, WbcError
 from wbc.robots.omni import normal_forces, system_com
 from wbc.sim.actuation import Actuation, ActuationState
 
+from . import dynamics_c
+
 __all__ = ["OmniDynamics", "coulomb_forces"]
 
 #: default yaw inertia [kg m²] of platform + arm about the platform centre: the platform as a
@@ -244,16 +246,46 @@ class OmniDynamics(Actuation):
         limit = self._mu * normal
         # an unpowered wheel gets no noise either
         noise = self.torque_noise * state.rng.standard_normal(self._n) * (self._gain != 0)
+        if self.servo == "torque":  # the torques hold over the tick
+            command = self._gain * command + noise
+        elif self.servo == "angle_target":  # as angles since the tick's start [rad]
+            command = command - self._angle
+        compiled = dynamics_c.library() if self._n == 4 else None
+        run = self._python_substeps if compiled is None else self._compiled_substeps
+        v, rates, turned, slid, peak, torque_sum = run(v, rates, command, limit, noise)
+        self._rates = rates
+        self._angle += turned
+        state.v_true = np.empty(int(state.robot.nv))
+        state.v_measured = np.empty_like(state.v_true)
+        state.v_true[:3] = v
+        state.v_measured[:3] = self._J_pinv @ rates
+        arm = (np.zeros(self._n_arm) if self.arm_velocity is None
+               else checked_vector(self.arm_velocity(state.t), self._n_arm, "arm_velocity(t)",
+                                   broadcast=False))
+        state.v_true[3:] = arm
+        state.v_measured[3:] = arm
+        state.signals["slip_distance"] = slid
+        state.signals["friction_utilisation"] = peak
+        state.signals["wheel_torque"] = torque_sum / self.substeps
+        state.signals["normal_forces"] = normal
+        state.signals["wheel_rates"] = rates.copy()
+
+    def _python_substeps(self, v, rates, command, limit, noise):
+        """The tick's sub-steps in numpy (the compiled loop's referee, and the loop where no
+        compiler is at hand): ``command`` holds the torques [N m] (``servo="torque"``) or the
+        servos' targets [rad] as angles since the tick's start; ``v`` (3,) [m/s, rad/s] the
+        platform's twist and ``rates`` [rad/s] the wheels' at the tick's start, ``limit`` [N]
+        the friction limits, ``noise`` [N m] the servos' torque noise. Advances the servos'
+        integral; returns the tick's end ``v`` and ``rates`` and its ``turned`` [rad],
+        ``slid`` [m], ``peak`` utilisation and ``torque_sum`` [N m] (over the sub-steps)."""
         kp, kv, ki = self.gains
         h, R, G, M_inv = self._h, self._radii, self._G, self._M_inv
         inertia, A, A_inv = self.wheel_inertia, self._A, self._A_inv
         safe_limit = np.maximum(limit, 1e-300)
         torque_servo = self.servo == "torque"
-        if torque_servo:  # the torques hold over the tick
-            tau = self._gain * command + noise
+        if torque_servo:
+            tau = command
             drive = h * R * tau / inertia
-        elif self.servo == "angle_target":  # as angles since the tick's start [rad]
-            command = command - self._angle
         turned = np.zeros(self._n)  # wheel angle since the tick's start [rad]
         slid = np.zeros(self._n)
         peak = np.zeros(self._n)
@@ -273,19 +305,21 @@ class OmniDynamics(Actuation):
             slid += h * np.abs(slip)
             peak = np.maximum(peak, np.abs(F) / safe_limit)
             torque_sum += tau
-        self._rates = rates
-        self._angle += turned
-        state.v_true = np.empty(int(state.robot.nv))
-        state.v_measured = np.empty_like(state.v_true)
-        state.v_true[:3] = v
-        state.v_measured[:3] = self._J_pinv @ rates
-        arm = (np.zeros(self._n_arm) if self.arm_velocity is None
-               else checked_vector(self.arm_velocity(state.t), self._n_arm, "arm_velocity(t)",
-                                   broadcast=False))
-        state.v_true[3:] = arm
-        state.v_measured[3:] = arm
-        state.signals["slip_distance"] = slid
-        state.signals["friction_utilisation"] = peak
-        state.signals["wheel_torque"] = torque_sum / self.substeps
-        state.signals["normal_forces"] = normal
-        state.signals["wheel_rates"] = rates.copy()
+        return v, rates, turned, slid, peak, torque_sum
+
+    def _compiled_substeps(self, v, rates, command, limit, noise):
+        """:meth:`_python_substeps` (same arguments and results) by the compiled loop of
+        :mod:`papers.omni.dynamics_c` (four wheels)."""
+        v, rates = v.copy(), rates.copy()
+        turned, slid, peak, torque_sum = (np.zeros(self._n) for _ in range(4))
+        kp, kv, ki = self.gains
+        failed = dynamics_c.library()(
+            self.substeps, int(self.servo != "torque"), self._h, float(self.wheel_inertia),
+            float(kp), float(kv), float(ki), self._radii, self._G, self._M_inv, self._A,
+            self._A_inv, limit, np.maximum(limit, 1e-300), self._gain, noise,
+            np.ascontiguousarray(command, dtype=float), v, rates, self._integral, turned, slid,
+            peak, torque_sum)
+        if failed:
+            raise WbcError("coulomb_forces: the active-set loop did not settle (A not positive "
+                           "definite?)")
+        return v, rates, turned, slid, peak, torque_sum
