@@ -9,7 +9,9 @@ What lives where:
 * :mod:`~wbc.papers.omni.control` — the platform's two controllers (:class:`OmniPositionControl`,
   :class:`OmniForceControl`) and the controller's load-transfer model (:func:`load_transfer`);
 * :mod:`~wbc.papers.omni.dynamics` — the plant: the platform's planar rigid-body dynamics with
-  Coulomb wheel friction and servos (:class:`OmniDynamics`, a ``wbc.sim`` actuation);
+  Coulomb wheel friction and servos (:class:`OmniDynamics`, a ``wbc.sim`` actuation), whose
+  sub-step loop :mod:`~wbc.papers.omni.dynamics_c` runs as compiled C (numpy's operation order;
+  the Python loop where no compiler is found);
 * :mod:`~wbc.papers.omni.closed_form` — the distributions in closed form (also in
   :mod:`wbc.solvers.reference`), with both readings of eq. 12's lost criterion H
   (:data:`H_CRITERIA`).
