@@ -34,7 +34,8 @@ import numpy as np
 
 from wbc import cbuild
 
-__all__ = ["SOURCE", "library"]
+# nothing for the package to re-export: OmniDynamics (papers.omni.dynamics) is the public face
+__all__: list[str] = []
 
 SOURCE = r"""
 #include <math.h>
