@@ -210,6 +210,9 @@ class Controller:
         last_command: the array the last :meth:`step` returned (a snapshot, or the caller's
             ``out``).
         workspace: the :class:`~wbc.Workspace` (parameters, buffers, live backends).
+        jit_c: ``jit`` resolved: whether the ordinary path's level functions are compiled C
+            (``True``, or ``"auto"`` with a C compiler found); set before
+            :meth:`build_fused_workspace` runs.
         model_parameters: the parameter names the model stage fills.
         reference_names: the keywords :meth:`step` accepts.
 
@@ -239,6 +242,7 @@ class Controller:
         self.robot = robot
         self.stack = stack
         self.fallback = fallback
+        self.jit_c = jit is True or (jit == "auto" and compiler_available())
         self.nq, self.nv = int(robot.nq), int(robot.nv)
         self.compiled = stack.compile()
         _check_task_names(stack, robot)
@@ -273,7 +277,7 @@ class Controller:
         if fused_workspace is not None:
             self.workspace = fused_workspace
         else:
-            if jit is True or (jit == "auto" and compiler_available()):
+            if self.jit_c:
                 self.compiled = jit_compiled(self.compiled)
             self.workspace = Workspace(self.compiled, backend, profile, warm_start, **options)
         self._last_solution: Solution | None = None
@@ -299,7 +303,7 @@ class Controller:
             solve, self._live_solution = self._solve_ordinary, None
         # the C tick when this controller compiles C anyway (fused, or jit), else Python's; it
         # makes the fused call itself when no numeric model quantity is filled in between
-        uses_c = self.fused or jit is True or (jit == "auto" and compiler_available())
+        uses_c = self.fused or self.jit_c
         tick = _c_stage(os.environ.get("CC", "cc")) if uses_c else _python_path
         parameters = self.compiled.parameters
         layout = (parameters["q"][0] if self._q is not None else -1, self.nq,

@@ -66,7 +66,7 @@ import casadi as ca
 import numpy as np
 
 import wbc
-from wbc.cbuild import DEFAULT_FLAGS, compiled_library, compiler_available
+from wbc.cbuild import DEFAULT_FLAGS, compiled_library
 from wbc.compiler import LEVEL, CompiledStack
 from wbc.errors import WbcError
 from wbc.fused import (
@@ -277,11 +277,6 @@ class WholeBodyQPController(wbc.Controller):
         **kwargs: :class:`wbc.Controller`'s other arguments.
     """
 
-    def __init__(self, robot, stack: wbc.Stack, *, jit: bool | str = "auto",
-                 fused: bool | str = "auto", **kwargs) -> None:
-        self._jit_ordinary = jit is True or (jit == "auto" and compiler_available())
-        super().__init__(robot, stack, jit=jit, fused=fused, **kwargs)
-
     def build_fused_workspace(self, fused, backend, profile, warm_start, options):
         """A :class:`WholeBodyFastWorkspace` if the fast path applies (``fused`` in the class
         docstring), else ``None`` with ``self.fused_reason`` saying why (the hook of
@@ -289,6 +284,6 @@ class WholeBodyQPController(wbc.Controller):
         workspace, self.fused_reason = build_fused(
             fused, lambda: why_not_fast(self.stack, self.compiled, backend, options),
             lambda: WholeBodyFastWorkspace(self.stack, self.compiled, profile, warm_start,
-                                           self._jit_ordinary, **options),
+                                           self.jit_c, **options),
             "the whole-body tick cannot take the fast path")
         return workspace

@@ -93,7 +93,7 @@ import casadi as ca
 import numpy as np
 
 import wbc
-from wbc.cbuild import DEFAULT_FLAGS, compiled_c, compiler_available
+from wbc.cbuild import DEFAULT_FLAGS, compiled_c
 from wbc.compiler import LEVEL, SCALING_LP, CompiledStack
 from wbc.errors import WbcError
 from wbc.fused import (
@@ -330,11 +330,9 @@ class AMPController(wbc.Controller):
         **kwargs: :class:`wbc.Controller`'s other arguments.
     """
 
-    def __init__(self, robot, stack: wbc.Stack, n_base: int, *, jit: bool | str = "auto",
-                 fused: bool | str = "auto", **kwargs) -> None:
-        self._n_base = n_base
-        self._jit_ordinary = jit is True or (jit == "auto" and compiler_available())
-        super().__init__(robot, stack, jit=jit, fused=fused, **kwargs)
+    def __init__(self, robot, stack: wbc.Stack, n_base: int, **kwargs) -> None:
+        self._n_base = n_base  # read by build_fused_workspace, which Controller's __init__ calls
+        super().__init__(robot, stack, **kwargs)
 
     def build_fused_workspace(self, fused, backend, profile, warm_start, options):
         """An :class:`AMPFastWorkspace` if the fast path applies (``fused`` in the class
@@ -343,6 +341,6 @@ class AMPController(wbc.Controller):
         workspace, self.fused_reason = build_fused(
             fused, lambda: why_not_fast(self.compiled, self._n_base, backend, options),
             lambda: AMPFastWorkspace(self.compiled, self._n_base, profile, warm_start,
-                                     self._jit_ordinary, **options),
+                                     self.jit_c, **options),
             "AMP's tick cannot take the fast path")
         return workspace
