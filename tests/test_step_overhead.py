@@ -301,6 +301,10 @@ def test_the_stage_and_python_give_the_same_bits(robot):
     parameters, bit for bit. A controller that compiles no C (``fused=False, jit=False``) uses
     Python's path."""
     assert panda(robot, fused=False, jit=False)._hot.tick is controller_module._python_path
+    # jit resolved once: "auto" compiles C exactly where a compiler is found
+    assert panda(robot, fused=False, jit=False).jit_c is False
+    assert panda(robot, fused=False, jit=True).jit_c is True
+    assert panda(robot, fused=False).jit_c is compiler_available()
     fast, slow = panda(robot), panda(robot)
     slow._hot = slow._hot._replace(tick=controller_module._python_path)
     rng = np.random.default_rng(3)
