@@ -216,11 +216,11 @@ def _read_json(path: Path) -> dict | None:
         return None
 
 
-def _not_reproducible(claims: list[dict]) -> str:
+def _not_reproducible(claims: list[dict], prefix: str = "; ") -> str:
     """``"; k not reproducible with this model"`` for a claims list with k such verdicts, or
-    ``""``."""
+    ``""`` (``prefix`` replaces ``"; "``)."""
     k = sum(c.get("verdict") == VERDICTS[2] for c in claims)
-    return f"; {k} not reproducible with this model" if k else ""
+    return f"{prefix}{k} not reproducible with this model" if k else ""
 
 
 def _paper_section(name: str, out: Path, steps: dict[str, Step]
@@ -254,7 +254,7 @@ def _paper_section(name: str, out: Path, steps: dict[str, Step]
         held_physics = sum(bool(c["holds"]) for c in physics["claims"])
         unreachable = _not_reproducible(physics["claims"])
         summary += (f"; {held_physics} of {len(physics['claims'])} on MuJoCo"
-                    + (f" ({unreachable[2:]})" if unreachable else ""))
+                    + (f" ({_not_reproducible(physics['claims'], '')})" if unreachable else ""))
         lines.append(f"On MuJoCo: {held_physics} of {len(physics['claims'])} "
                      f"({physics_step.seconds:.0f} s{unreachable}; {_plant_line(physics)}; "
                      "what the plant "
